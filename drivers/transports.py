@@ -1,0 +1,182 @@
+"""Byte transports behind one interface, chosen by a URL (as pyserial does).
+
+==========================  ============================================
+``/dev/ttyUSB0``            serial port (pyserial-asyncio-fast)
+``serial:///dev/ttyUSB0``   the same, explicit
+``tcp://host:port``         TCP stream (radio modems are often bridges)
+``sim://NAME``              in-memory port of the simulated backend
+``loop://``                 in-memory loopback (what you write is read)
+==========================  ============================================
+
+A transport reads chunks of bytes (``b""`` means the far end closed) and
+writes bytes.  Drivers own their transport and reopen it on errors.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections import deque
+from typing import Protocol
+from urllib.parse import urlparse
+
+
+class TransportError(OSError):
+    """The device could not be opened or failed."""
+
+
+class Transport(Protocol):
+    url: str
+
+    async def read(self) -> bytes:
+        """Next chunk of bytes; ``b""`` when the far end closed."""
+        ...
+
+    async def write(self, data: bytes) -> None: ...
+
+    async def close(self) -> None: ...
+
+
+class MemoryPipe:
+    """One-way in-memory byte channel with an asyncio wake-up."""
+
+    def __init__(self) -> None:
+        self._chunks: deque[bytes] = deque()
+        self._waiter: asyncio.Future[None] | None = None
+        self.closed = False
+        self.bytes_written = 0
+
+    def write(self, data: bytes) -> None:
+        if self.closed or not data:
+            return
+        self._chunks.append(data)
+        self.bytes_written += len(data)
+        w = self._waiter
+        if w is not None and not w.done():
+            w.set_result(None)
+
+    def close(self) -> None:
+        self.closed = True
+        w = self._waiter
+        if w is not None and not w.done():
+            w.set_result(None)
+
+    async def read(self) -> bytes:
+        while not self._chunks:
+            if self.closed:
+                return b""
+            self._waiter = asyncio.get_running_loop().create_future()
+            try:
+                await self._waiter
+            finally:
+                self._waiter = None
+        if len(self._chunks) == 1:
+            return self._chunks.popleft()
+        out = b"".join(self._chunks)
+        self._chunks.clear()
+        return out
+
+
+class MemoryTransport:
+    """One end of an in-memory link: reads ``rx``, writes ``tx``."""
+
+    def __init__(self, url: str, rx: MemoryPipe, tx: MemoryPipe) -> None:
+        self.url = url
+        self._rx = rx
+        self._tx = tx
+
+    async def read(self) -> bytes:
+        return await self._rx.read()
+
+    async def write(self, data: bytes) -> None:
+        if self._tx.closed:
+            raise TransportError(f"{self.url}: closed")
+        self._tx.write(data)
+
+    def write_nowait(self, data: bytes) -> None:
+        self._tx.write(data)
+
+    async def close(self) -> None:
+        self._rx.close()
+        self._tx.close()
+
+
+def memory_link(name: str) -> tuple[MemoryTransport, MemoryTransport]:
+    """(device end, runtime end) of an in-memory serial link ``sim://name``."""
+    a, b = MemoryPipe(), MemoryPipe()
+    url = f"sim://{name}"
+    return MemoryTransport(url, a, b), MemoryTransport(url, b, a)
+
+
+class SimPorts:
+    """Registry of the simulated backend's ports, by name (``sim://NAME``)."""
+
+    def __init__(self) -> None:
+        self._ports: dict[str, MemoryTransport] = {}
+
+    def create(self, name: str) -> MemoryTransport:
+        """Create the link ``name``; returns the *device* end."""
+        dev, rt = memory_link(name)
+        self._ports[name] = rt
+        return dev
+
+    def runtime_end(self, name: str) -> MemoryTransport:
+        try:
+            return self._ports[name]
+        except KeyError:
+            raise TransportError(f"sim://{name}: no such simulated port") from None
+
+
+class StreamTransport:
+    """Transport over an asyncio StreamReader/StreamWriter (serial or TCP)."""
+
+    def __init__(self, url: str, reader: asyncio.StreamReader,
+                 writer: asyncio.StreamWriter) -> None:
+        self.url = url
+        self._reader = reader
+        self._writer = writer
+
+    async def read(self) -> bytes:
+        return await self._reader.read(4096)
+
+    async def write(self, data: bytes) -> None:
+        self._writer.write(data)
+        await self._writer.drain()
+
+    async def close(self) -> None:
+        self._writer.close()
+        with contextlib.suppress(OSError, RuntimeError):
+            await self._writer.wait_closed()
+
+
+async def open_transport(url: str, baudrate: int = 115200,
+                         sim: SimPorts | None = None) -> Transport:
+    """Open the device at ``url``; raises TransportError with the reason."""
+    if url.startswith("sim://"):
+        if sim is None:
+            raise TransportError(f"{url}: simulated ports exist only in simulation")
+        return sim.runtime_end(url[len("sim://"):])
+    if url.startswith("loop://"):
+        pipe = MemoryPipe()
+        return MemoryTransport(url, pipe, pipe)
+    if url.startswith("tcp://"):
+        u = urlparse(url)
+        if not u.hostname or not u.port:
+            raise TransportError(f"{url}: expected tcp://HOST:PORT")
+        try:
+            reader, writer = await asyncio.open_connection(u.hostname, u.port)
+        except OSError as exc:
+            raise TransportError(f"{url}: {exc}") from exc
+        return StreamTransport(url, reader, writer)
+    path = url[len("serial://"):] if url.startswith("serial://") else url
+    if not path:
+        raise TransportError("empty device address")
+    import serial_asyncio_fast  # pyserial-asyncio-fast
+
+    try:
+        reader, writer = await serial_asyncio_fast.open_serial_connection(
+            url=path, baudrate=baudrate
+        )
+    except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
+        raise TransportError(f"{path}: {exc}") from exc
+    return StreamTransport(url, reader, writer)

@@ -1,0 +1,138 @@
+"""``zarco`` command line: ``sim`` (virtual clock), ``run`` (the boat)."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import logging
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+from zarco_runtime.config import ConfigError
+
+
+def _fmt(v: Any, unit: str = "m") -> str:
+    return f"{v:.3f} {unit}" if isinstance(v, (int, float)) else str(v)
+
+
+def summary(report: dict[str, Any]) -> str:
+    """One screen of headline figures."""
+    lines = [
+        f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
+        f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "
+        f"= {report['speedup']:.0f}× real time",
+        f"cross-track (≥15 m into each leg): RMS {_fmt(report['xtrack_rms_m'])}  "
+        f"p95 {_fmt(report['xtrack_p95_m'])}  max {_fmt(report['xtrack_max_m'])}",
+        f"corner overshoot max {_fmt(report['corner_overshoot_max_m'])}   "
+        f"thrusters saturated {100 * report['saturation_fraction']:.1f} % of ticks",
+        "",
+        " leg  speed    RMS      p95      max    overshoot",
+    ]
+    for leg in report["legs"]:
+        lines.append(
+            f" {leg['leg']:3d}  {leg['speed_mps']:4.2f}  {leg['xtrack_rms_m']:7.3f}  "
+            f"{leg['xtrack_p95_m']:7.3f}  {leg['xtrack_max_m']:7.3f}  {leg['overshoot_m']:7.2f}"
+        )
+    if report.get("faults"):
+        lines.append("")
+        lines.append("faults: " + "; ".join(report["faults"]))
+    return "\n".join(lines)
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    from zarco_runtime.scenario import load_scenario
+    from zarco_runtime.simulation import StatusLine, run_scenario
+
+    scn = load_scenario(args.scenario, args.set, args.seed)
+    status = None if args.quiet else StatusLine()
+    try:
+        res = run_scenario(scn, progress=status)
+    finally:
+        if status is not None:
+            status.close()
+    if args.report:
+        Path(args.report).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.report).write_text(json.dumps(res.report, indent=2) + "\n")
+    if args.plot:
+        from zarco_runtime.plot import plot_lines
+
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        plot_lines(args.plot, res.log, res.legs,
+                   f"{scn.scenario.name}: seed {scn.scenario.seed}, "
+                   f"RMS {res.report['xtrack_rms_m']:.3f} m")
+    print(summary(res.report))
+    if args.report:
+        print(f"\nreport: {args.report}")
+    if args.plot:
+        print(f"plot:   {args.plot}")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from zarco_runtime.geodesy import LocalFrame
+    from zarco_runtime.guidance.mission import build_legs
+    from zarco_runtime.runtime import Runtime
+    from zarco_runtime.scenario import load_runtime_config
+
+    cfg, mission = load_runtime_config(args.config, args.set)
+    o = cfg.origin
+    legs = build_legs(mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)) if mission else []
+    runtime = Runtime(cfg, legs)
+
+    async def main() -> None:
+        task = asyncio.current_task()
+        loop = asyncio.get_running_loop()
+        assert task is not None
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, task.cancel)
+        try:
+            await runtime.run()
+        except asyncio.CancelledError:
+            logging.getLogger("zarco").info("stopping: signal received")
+
+    asyncio.run(main())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="zarco", description="Zarco ASV runtime")
+    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("sim", help="simulate a scenario on the virtual clock")
+    s.add_argument("scenario", help="scenario TOML file")
+    s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key by dotted path (repeatable)")
+    s.add_argument("--seed", type=int, default=None, help="random seed (overrides the file)")
+    s.add_argument("--report", metavar="FILE.json", help="write the JSON report here")
+    s.add_argument("--plot", metavar="FILE.png", help="write the track/cross-track plot here")
+    s.add_argument("-q", "--quiet", action="store_true", help="no running status")
+    s.set_defaults(func=cmd_sim)
+
+    r = sub.add_parser("run", help="run on the vessel (real devices)")
+    r.add_argument("--config", required=True, help="runtime TOML (config/zarco.toml)")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    r.set_defaults(func=cmd_run)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.WARNING,
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        return int(args.func(args))
+    except ConfigError as exc:
+        print(f"zarco: configuration refused: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,129 @@
+"""Guidance and control task: at the control rate, NavState → thruster commands.
+
+Each tick: take the latest NavState (extrapolated to now), update the line
+guidance, compute the demands, allocate them to the thrusters through f⁻¹,
+and publish ThrusterCommand, ControlStatus and GuidanceStatus.
+
+Safety: a demand or command that is not finite becomes zero thrust and a
+Fault; an invalid navigation state (no valid fix or heading) for longer than
+``failsafe.nav_invalid_s`` commands zero thrust with the reason, and control
+resumes when it is valid again.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+
+from zarco_runtime.bus import Bus
+from zarco_runtime.clock import Clock
+from zarco_runtime.control.allocation import ZERO, Allocation, allocate
+from zarco_runtime.control.line_tracking import LineController
+from zarco_runtime.control.thruster_map import ThrusterMap
+from zarco_runtime.guidance.lines import LineGuidance
+from zarco_runtime.guidance.mission import Leg
+from zarco_runtime.messages import (
+    ControlStatus,
+    Fault,
+    GuidanceStatus,
+    NavState,
+    ThrusterCommand,
+)
+from zarco_runtime.settings import RuntimeConfig
+
+log = logging.getLogger("zarco.control")
+
+
+class ControlTask:
+    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock, legs: list[Leg]) -> None:
+        self.cfg = cfg
+        self.bus = bus
+        self.clock = clock
+        self.dt = 1.0 / cfg.control.rate_hz
+        th = cfg.thrusters
+        self.port = ThrusterMap.from_table(th.port.u, th.port.f_n)
+        self.stbd = ThrusterMap.from_table(th.starboard.u, th.starboard.f_n)
+        self.nav = bus.latest(NavState)
+        self.guidance = LineGuidance(
+            legs, cfg.guidance.switching, math.radians(cfg.guidance.turn_rate_dps)
+        ) if legs else None
+        self.ctl = LineController(cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt)
+        self.complete = asyncio.Event()
+        self.invalid_since: float | None = None
+        self.fault = ""
+        self.ticks = 0
+        self.saturated_ticks = 0
+        self.faults = 0
+
+    def _raise_fault(self, t: float, reason: str) -> None:
+        if reason != self.fault:
+            log.warning("control: %s", reason)
+            self.bus.publish(Fault(t, "control", reason))
+        self.fault = reason
+        self.faults += 1
+
+    def tick(self, t: float) -> Allocation:
+        """One control step at time ``t``; returns the allocation commanded."""
+        bus = self.bus
+        nav = self.nav.value
+        self.ticks += 1
+        if nav is None or self.guidance is None:
+            return ZERO
+        # extrapolate the estimate to now
+        age = t - nav.t
+        x = nav.x_m + nav.vn_mps * age
+        y = nav.y_m + nav.ve_mps * age
+        psi = nav.psi_rad + nav.r_rps * age
+        valid = nav.pos_valid and nav.heading_valid
+        if not valid:
+            if self.invalid_since is None:
+                self.invalid_since = t
+            if t - self.invalid_since >= self.cfg.failsafe.nav_invalid_s:
+                why = "no valid position" if not nav.pos_valid else "no valid heading"
+                self._raise_fault(t, f"failsafe: {why}; zero thrust")
+                return ZERO
+        else:
+            self.invalid_since = None
+        ls = self.guidance.update(x, y)
+        bus.publish(GuidanceStatus(t, "lines", ls.leg.index, len(self.guidance.legs),
+                                   ls.along_m, ls.xtrack_m, ls.leg.course_rad,
+                                   ls.leg.speed_mps, ls.complete))
+        if ls.complete:
+            self.complete.set()
+            return ZERO
+        nav_now = NavState(t, x, y, nav.vn_mps, nav.ve_mps, psi, nav.r_rps, nav.u_mps,
+                           nav.v_mps, nav.lat_deg, nav.lon_deg, nav.fix, nav.pos_valid,
+                           nav.heading_valid)
+        dem = self.ctl.step(nav_now, ls.leg, ls.xtrack_m)
+        alloc = allocate(dem.x_n, dem.n_nm, self.cfg.vessel.b_m, self.port, self.stbd)
+        if alloc.fault or not (math.isfinite(alloc.u1) and math.isfinite(alloc.u2)):
+            self._raise_fault(t, f"non-finite control output ({alloc.fault or 'command'}); "
+                              "zero thrust")
+            return ZERO
+        if self.fault:
+            log.info("control: fault cleared (%s)", self.fault)
+            self.fault = ""
+        self.ctl.commit(nav_now, alloc)
+        if alloc.saturated:
+            self.saturated_ticks += 1
+        bus.publish(ControlStatus(t, dem.psi_ref_rad, alloc.x_n, alloc.n_nm, alloc.f1_n,
+                                  alloc.f2_n, alloc.u1, alloc.u2, alloc.saturated))
+        return alloc
+
+    async def run(self) -> None:
+        clock = self.clock
+        t0 = clock.now()
+        k = 0
+        while True:
+            k += 1
+            await clock.sleep_until(t0 + k * self.dt)
+            t = clock.now()
+            try:
+                alloc = self.tick(t)
+            except Exception as exc:  # never let a control bug leave thrust on
+                log.exception("control tick failed")
+                self._raise_fault(t, f"control error: {exc!r}; zero thrust")
+                alloc = ZERO
+            reason = self.fault
+            self.bus.publish(ThrusterCommand(t, alloc.u1, alloc.u2, reason))

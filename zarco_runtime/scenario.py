@@ -1,0 +1,79 @@
+"""Scenario files: the simulated world, the mission and the runtime's config.
+
+A scenario (``config/scenarios/*.toml``) has four tables:
+
+``[scenario]``  name, seed, time limit
+``[world]``     what the simulator simulates (drivers.sim.params.WorldParams)
+``[mission]``   the lines mission (guidance.mission.MissionConfig)
+``[runtime]``   the runtime's configuration, as in ``config/zarco.toml``
+                (settings.RuntimeConfig); its devices default to ``sim://``
+
+``--set world.current.speed_mps=0.4`` overrides any key by its dotted path.
+The runtime's NED origin is the world's unless the scenario sets one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from drivers.sim.params import WorldParams
+
+from zarco_runtime.config import ConfigError, apply_overrides, build, load_toml, spec
+from zarco_runtime.guidance.mission import MissionConfig
+from zarco_runtime.settings import RuntimeConfig
+
+
+@dataclass(slots=True)
+class ScenarioMeta:
+    name: str = spec("scenario", "", "name shown in reports")
+    seed: int = spec(1, "", "random seed: one seed, bit-identical results", min=0)
+    max_duration_s: float = spec(7200.0, "s", "stop the simulation after this long",
+                                 min=1.0, max=1e6)
+    record_hz: float = spec(10.0, "Hz", "rate of the true-track log", min=0.5, max=100.0)
+
+
+@dataclass(slots=True)
+class Scenario:
+    scenario: ScenarioMeta = spec(ScenarioMeta)
+    world: WorldParams = spec(WorldParams)
+    mission: MissionConfig = spec(MissionConfig)
+    runtime: RuntimeConfig = spec(RuntimeConfig)
+
+
+def load_scenario(path: str | Path, overrides: list[str] | None = None,
+                  seed: int | None = None) -> Scenario:
+    """Read, override and validate a scenario; raises ConfigError naming file and key."""
+    file = str(path)
+    data: dict[str, Any] = load_toml(path)
+    if overrides:
+        apply_overrides(data, overrides, file=f"{file} (--set)")
+    scn = build(Scenario, data, file)
+    if seed is not None:
+        if seed < 0:
+            raise ConfigError(file, "scenario.seed", f"must be ≥ 0, got {seed}")
+        scn.scenario.seed = seed
+    if "origin" not in data.get("runtime", {}):
+        w = scn.world
+        scn.runtime.origin.lat_deg = w.origin_lat_deg
+        scn.runtime.origin.lon_deg = w.origin_lon_deg
+    elif (abs(scn.runtime.origin.lat_deg - scn.world.origin_lat_deg) > 1e-9
+          or abs(scn.runtime.origin.lon_deg - scn.world.origin_lon_deg) > 1e-9):
+        raise ConfigError(file, "runtime.origin",
+                          "must equal the world's origin in a scenario (or be left out)")
+    return scn
+
+
+def load_runtime_config(path: str | Path, overrides: list[str] | None = None
+                        ) -> tuple[RuntimeConfig, MissionConfig | None]:
+    """Read and validate ``config/zarco.toml`` (the boat's configuration) and its
+    optional ``[mission]`` table."""
+    file = str(path)
+    data = load_toml(path)
+    if overrides:
+        apply_overrides(data, overrides, file=f"{file} (--set)")
+    mission_raw = data.pop("mission", None)
+    cfg = build(RuntimeConfig, data, file)
+    mission = build(MissionConfig, mission_raw, file, "mission") if mission_raw else None
+    return cfg, mission

@@ -1,0 +1,161 @@
+"""``zarco sim``: the runtime against the simulated backend, on the virtual clock.
+
+One process, one event loop: the simulated devices (drivers.sim.backend)
+write real NMEA bytes into in-memory ports; the *unchanged* runtime reads
+them through its drivers, estimates, guides, controls and writes ``$PZTHR``
+bytes back to the simulated thruster controller.  The virtual clock jumps
+from event to event, so a mission simulates much faster than real time.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from drivers.sim.world import SimWorld
+
+from drivers.sim.backend import SimBackend
+from drivers.transports import SimPorts
+from zarco_runtime.bus import Bus
+from zarco_runtime.clock import Clock, run_virtual
+from zarco_runtime.geodesy import LocalFrame
+from zarco_runtime.guidance.mission import Leg, build_legs
+from zarco_runtime.messages import Fault, GuidanceStatus, ThrusterCommand
+from zarco_runtime.runtime import Runtime
+from zarco_runtime.scenario import Scenario
+from zarco_runtime.sim_report import TrackLog, line_figures
+
+ProgressFn = Callable[[float, float, int, int], None]
+
+
+class _Stop(Exception):
+    """Raised inside the task group to end the simulation."""
+
+
+@dataclass(slots=True)
+class SimResult:
+    scenario: Scenario
+    legs: list[Leg]
+    log: TrackLog
+    report: dict[str, Any]
+
+
+async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
+                    progress: ProgressFn | None, counters: dict[str, Any]) -> None:
+    world = SimWorld(scn.world, scn.scenario.seed)
+    clock = Clock(utc_offset_s=world.utc_epoch_s(0.0))
+    bus = Bus()
+    ports = SimPorts()
+    backend = SimBackend(world, ports, clock)
+    runtime = Runtime(scn.runtime, legs, bus, clock, sim=ports)
+    guid = bus.latest(GuidanceStatus)
+    cmd = bus.latest(ThrusterCommand)
+    faults: list[str] = []
+    bus.tap(lambda m: faults.append(m.reason) if isinstance(m, Fault) else None)
+    limit = scn.scenario.max_duration_s
+    period = 1.0 / scn.scenario.record_hz
+
+    async def recorder() -> None:
+        k = 0
+        while True:
+            t = k * period
+            await clock.sleep_until(t)
+            world.advance_to(t)
+            s = world.truth()
+            g = guid.value
+            c = cmd.value
+            log.add(t, s.x_m, s.y_m, s.psi_rad, g.leg if g else 0,
+                    c.u1 if c else 0.0, c.u2 if c else 0.0)
+            if progress is not None and k % int(max(1, 10 * scn.scenario.record_hz)) == 0:
+                progress(t, limit, g.leg if g else 0, len(legs))
+            k += 1
+
+    async def supervisor() -> None:
+        done = runtime.control.complete
+        try:
+            await asyncio.wait_for(done.wait(), timeout=limit)
+            counters["stop"] = "mission complete"
+        except TimeoutError:
+            counters["stop"] = f"time limit {limit} s"
+        counters["sim_seconds"] = clock.now()
+        raise _Stop
+
+    try:
+        async with asyncio.TaskGroup() as tg:
+            for name, fn in backend.tasks():
+                tg.create_task(fn(), name=f"sim.{name}")
+            tg.create_task(runtime.run(), name="runtime")
+            tg.create_task(recorder(), name="sim.recorder")
+            tg.create_task(supervisor(), name="sim.supervisor")
+    except* _Stop:
+        pass
+    counters["control_ticks"] = runtime.control.ticks
+    counters["saturated_ticks"] = runtime.control.saturated_ticks
+    counters["faults"] = sorted(set(faults))
+    counters["devices"] = {
+        "gps": dict(runtime.gps.counters),
+        "compass": dict(runtime.compass.counters),
+        "thrusters": dict(runtime.thrusters.counters),
+    }
+    counters["sim_thruster_controller"] = backend.counters
+
+
+def run_scenario(scn: Scenario, progress: ProgressFn | None = None) -> SimResult:
+    """Simulate ``scn`` to the end of its mission (or its time limit)."""
+    o = scn.runtime.origin
+    legs = build_legs(scn.mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m))
+    log = TrackLog()
+    counters: dict[str, Any] = {}
+    w0 = time.perf_counter()
+    run_virtual(_simulate(scn, legs, log, progress, counters))
+    wall = time.perf_counter() - w0
+    sim_s = float(counters.get("sim_seconds", log.t[-1] if log.t else 0.0))
+    ticks = max(1, int(counters.get("control_ticks", 1)))
+    report: dict[str, Any] = {
+        "scenario": scn.scenario.name,
+        "seed": scn.scenario.seed,
+        "stop": counters.get("stop"),
+        "sim_seconds": round(sim_s, 3),
+        "wall_seconds": round(wall, 3),
+        "speedup": round(sim_s / wall, 1) if wall > 0 else math.inf,
+        **line_figures(log, legs),
+        "saturation_fraction": counters.get("saturated_ticks", 0) / ticks,
+        "faults": counters.get("faults", []),
+        "devices": counters.get("devices", {}),
+        "sim_thruster_controller": counters.get("sim_thruster_controller", {}),
+    }
+    return SimResult(scn, legs, log, report)
+
+
+class StatusLine:
+    """A running status on stderr: rewritten in place on a terminal, sparse otherwise."""
+
+    def __init__(self, stream: Any = sys.stderr) -> None:
+        self.stream = stream
+        self.tty = bool(getattr(stream, "isatty", lambda: False)())
+        self.w0 = time.perf_counter()
+        self.last = -1e9
+
+    def __call__(self, t: float, limit: float, leg: int, legs: int) -> None:
+        now = time.perf_counter()
+        if now - self.last < (0.2 if self.tty else 5.0):
+            return
+        self.last = now
+        wall = now - self.w0
+        speed = t / wall if wall > 0 else 0.0
+        msg = f"sim {t:7.1f} s  leg {leg + 1}/{legs}  {speed:6.0f}× real time"
+        if self.tty:
+            self.stream.write("\r" + msg)
+        else:
+            self.stream.write(msg + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty:
+            self.stream.write("\r" + " " * 60 + "\r")
+            self.stream.flush()
