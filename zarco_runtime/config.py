@@ -190,7 +190,7 @@ def build(cls: type[T], data: dict[str, Any], file: str, prefix: str = "") -> T:
 def spec(default: Any, unit: str = "", doc: str = "", **meta: Any) -> Any:
     """Shorthand for a dataclass field with config metadata."""
     md = {"unit": unit, "doc": doc, **meta}
-    if isinstance(default, (list, dict)) or dataclasses.is_dataclass(default):
+    if callable(default) or isinstance(default, (list, dict)) or dataclasses.is_dataclass(default):
         factory = default if callable(default) else (lambda d=default: _copy(d))
         return dataclasses.field(default_factory=factory, metadata=md)
     return dataclasses.field(default=default, metadata=md)
