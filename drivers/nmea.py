@@ -338,7 +338,7 @@ def sentence_fields(line: str) -> tuple[str, str, list[str]]:
 
 
 #: a sentence decoder: (talker, fields, t, source, variation_deg) -> messages
-Handler = Callable[[str, list[str], float, str, "float | None"], list[Any]]
+Handler = Callable[[str, list[str], float, str, float | None], list[Any]]
 
 
 def dispatch(line: str, handlers: Mapping[str, Handler], t: float, source: str,

@@ -93,8 +93,9 @@ def test_max_len_is_inclusive() -> None:
     assert len(line) == 40
     f = NmeaFramer(max_len=40)
     assert f.feed(line + b"\r\n") == [line.decode()]
-    assert f.feed(b"$" + line + b"\r\n") == []  # 41 characters
-    assert f.overlong == 1
+    longer = format_sentence(body + "A").rstrip(b"\r\n")
+    assert f.feed(longer + b"\r\n") == []  # 41 characters
+    assert f.overlong == 1 and f.bytes_discarded == 41
 
 
 def test_non_printable_or_non_ascii_line_rejected() -> None:
@@ -121,14 +122,22 @@ def test_new_dollar_restarts_the_frame() -> None:
 
 
 def test_real_logs_through_the_framer_in_random_chunks() -> None:
-    """Every capture, cut at random, frames back to exactly its sentences;
-    only its comment lines are discarded."""
+    """Every capture, cut at random, frames back to exactly its lines.
+
+    Comment lines are discarded, except from a ``$`` on: pypilot.log's
+    "# Note: Use of $AP prefix" comes out as the candidate "$AP prefix"
+    (a framer cannot know better; the checksum check refuses it).
+    """
     rng = random.Random(7)
     for path in sorted(DATA.glob("*.log")):
         data = path.read_bytes()
-        lines = data.decode().splitlines()
-        want = [ln for ln in lines if ln.startswith("$")]
-        comments = sum(len(ln) for ln in lines if not ln.startswith("$"))
+        want: list[str] = []
+        comments = 0
+        for ln in data.splitlines():
+            start = ln.find(b"$")
+            comments += len(ln) if start < 0 else start
+            if start >= 0:
+                want.append(ln[start:].decode())
         f = NmeaFramer()
         got: list[str] = []
         i = 0
@@ -159,7 +168,7 @@ def test_framer_throughput() -> None:
 
 
 def test_split_checked() -> None:
-    assert split_checked("$PZTHR,1.0,-2.5*62") == ("PZTHR", ["1.0", "-2.5"])
+    assert split_checked("$PZTHR,1.0,-2.5*6F") == ("PZTHR", ["1.0", "-2.5"])
     assert split_checked(HDT) == ("GPHDT", ["274.07", "T"])
     assert split_checked(HDT + "\r\n") == ("GPHDT", ["274.07", "T"])
     assert split_checked(GGA[:-2] + "6a")[0] == "GNGGA"  # lower-case hex is accepted
@@ -167,6 +176,7 @@ def test_split_checked() -> None:
 
 @pytest.mark.parametrize(("line", "reason"), [
     ("", "framing"),
+    ("$AP prefix", "no_checksum"),  # what the framer makes of pypilot.log's comment
     ("GPHDT,274.07,T*03", "framing"),
     ("$GPHDT,274.07,T", "no_checksum"),
     ("$GPHDT,274.07,T*04", "checksum"),

@@ -283,6 +283,7 @@ def test_gps_precision_and_fix_jumps() -> None:
 
 def test_compass_sentences() -> None:
     p = _quiet_world()
+    p.compass.xdr_every = 1  # XDR with every epoch, to check all three sentences
     w = SimWorld(p, seed=9)
     cp = p.compass
     bias_rot = math.degrees(w.compass.gyro_bias_rps) * 60.0
@@ -367,7 +368,9 @@ def test_component_streams_are_independent() -> None:
 
 
 def test_advance_to_grid() -> None:
-    w = SimWorld(_quiet_world(), seed=0)
+    p = _quiet_world()
+    p.dt_s = 0.01
+    w = SimWorld(p, seed=0)
     w.advance_to(0.3)
     assert w.k == 30  # 0.3 / 0.01 is 29.999… in floating point
     w.advance_to(0.355)

@@ -193,7 +193,9 @@ class CompassParams:
     calibration; gyro noise density 3.4e-4 rad/s/√Hz, turn-on bias 0.5 °/s.
     """
 
-    rate_hz: float = _p(20.0, "Hz", "rate of HDG, ROT and XDR", lo=0.1, hi=200.0)
+    rate_hz: float = _p(20.0, "Hz", "rate of HDG and ROT", lo=0.1, hi=200.0)
+    xdr_every: int = _p(4, "", "send XDR pitch/roll every Nth epoch (4: 5 Hz at 20 Hz; "
+                        "the runtime's control does not use attitude)", lo=1, hi=1000)
     noise_deg: float = _p(1.0, "deg", "1σ white heading noise", lo=0.0, hi=45.0)
     bias_deg: float = _p(1.0, "deg", "residual heading bias after calibration (signed, "
                          "added to the magnetic heading)", lo=-45.0, hi=45.0)
@@ -223,7 +225,8 @@ class WorldParams:
                            metadata=_md("", "GNSS receiver"))
     compass: CompassParams = field(default_factory=CompassParams,
                                    metadata=_md("", "compass / gyro / pitch-roll"))
-    dt_s: float = _p(0.01, "s", "fixed RK4 integration step", lo=1e-4, hi=0.05)
+    dt_s: float = _p(0.025, "s", "fixed RK4 integration step (25 ms divides the 50 ms and "
+                     "100 ms device and control periods)", lo=1e-4, hi=0.05)
     origin_lat_deg: float = _p(41.185, "deg", "latitude of the local NED origin (Leixões)",
                                lo=-90.0, hi=90.0)
     origin_lon_deg: float = _p(-8.705, "deg", "longitude of the local NED origin",

@@ -325,6 +325,7 @@ class SimCompass:
         self.gyro_sigma_rps = params.gyro_noise_density_rps_rthz * math.sqrt(params.rate_hz / 2)
         var = params.variation_deg
         self._var_field = f"{abs(var):.1f},{'E' if var >= 0.0 else 'W'}"
+        self._epoch = 0
 
     def sentences(self, t_s: float, psi_true_rad: float, r_true_rps: float,
                   pitch_rad: float = 0.0, roll_rad: float = 0.0) -> bytes:
@@ -337,9 +338,12 @@ class SimCompass:
         rot = math.degrees(r_true_rps + self.gyro_bias_rps + self.gyro_sigma_rps * n_g) * 60.0
         pitch = math.degrees(pitch_rad) + p.pitch_noise_deg * n_p
         roll = math.degrees(roll_rad) + p.roll_noise_deg * n_r
-        return (format_sentence(f"HCHDG,{_wrap360(mag, 1)},,,{self._var_field}")
-                + format_sentence(f"TIROT,{_fmt(rot, 2)},A")
-                + format_sentence(f"YXXDR,A,{_fmt(pitch, 1)},D,PTCH,A,{_fmt(roll, 1)},D,ROLL"))
+        out = (format_sentence(f"HCHDG,{_wrap360(mag, 1)},,,{self._var_field}")
+               + format_sentence(f"TIROT,{_fmt(rot, 2)},A"))
+        self._epoch += 1
+        if (self._epoch - 1) % p.xdr_every == 0:
+            out += format_sentence(f"YXXDR,A,{_fmt(pitch, 1)},D,PTCH,A,{_fmt(roll, 1)},D,ROLL")
+        return out
 
 
 # ------------------------------------------------------- thruster controller
