@@ -208,10 +208,11 @@ def parse_sentence(line: str) -> pynmea2.NMEASentence:
     pynmea2 maps fields lazily and accepts truncated sentences: callers must
     check ``len(msg.data)`` and convert fields with the ``field_*`` helpers.
     """
-    _check(line)
-    text = "$" + line[1:] if line[0] == "!" else line  # pynmea2 only knows "$"
+    body = _check(line)
+    # pynmea2 only knows "$"; the checksum was verified above, so hand it the
+    # body alone and it does not compute the checksum again
     try:
-        msg = pynmea2.parse(text, check=True)
+        msg = pynmea2.parse("$" + body, check=False)
     except pynmea2.SentenceTypeError as exc:
         raise NmeaError("unsupported", line[1:].split(",", 1)[0]) from exc
     except Exception as exc:  # pynmea2 raises ParseError, but be safe

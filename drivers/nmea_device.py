@@ -80,6 +80,8 @@ class DeviceLink:
             self.reason = reason
             if state is HealthState.OK:
                 self.log.info("%s: ok", self.name)
+            elif state is HealthState.STALE and self.last_ok is None:
+                self.log.info("%s: %s", self.name, reason)  # opened, no data yet
             else:
                 self.rlog.warning(f"state:{state.value}", f"{self.name}: {state.value}: {reason}")
             self.publish_health()

@@ -1,7 +1,9 @@
 """Thruster controller driver: ``$PZTHR`` out, ``$PZTHS`` in (DESIGN.md §7).
 
-Each ThrusterCommand on the bus is written at once (the controller publishes
-one per control tick, so commands go out at the control rate).  A watchdog
+Each ThrusterCommand on the bus is written at once, in the publisher's
+context (a bus listener, no scheduling delay; the write is non-blocking), and
+the controller publishes one per control tick, so commands go out at the
+control rate.  A watchdog
 sends zero thrust when the controller has said nothing for ``hold_s``, and
 the driver always writes zero before it exits (shutdown, crash of a sibling
 task), so a stopping runtime stops the boat, not only the controller's 0.5 s
@@ -33,54 +35,56 @@ class ThrusterDriver(DeviceLink):
     def __init__(self, cfg: Device, bus: Bus, clock: Clock, sim: SimPorts | None = None,
                  name: str = "thrusters") -> None:
         super().__init__(name, cfg, bus, clock, sim)
-        self.commands = bus.subscribe(ThrusterCommand, maxlen=4)
+        bus.listen(ThrusterCommand, self.on_command)
         self.tr: Transport | None = None
         self.last_cmd_t = -math.inf
         self.last_sent: tuple[float, float] = (0.0, 0.0)
 
-    async def _send(self, data: bytes) -> None:
+    def _send(self, data: bytes) -> None:
         tr = self.tr
         if tr is None:
+            self.counters["not_sent_disconnected"] += 1
             return
         try:
-            await tr.write(data)
+            tr.write_nowait(data)
             self.counters["commands_sent"] += 1
         except (TransportError, OSError) as exc:
             self.counters["write_errors"] += 1
             self.set_state(HealthState.DISCONNECTED, f"write failed: {exc}")
             self.tr = None
 
+    def on_command(self, cmd: ThrusterCommand) -> None:
+        """Put a command on the wire now; non-finite values become zero thrust."""
+        u1, u2 = cmd.u1, cmd.u2
+        if not (math.isfinite(u1) and math.isfinite(u2)):
+            self.counters["nonfinite_commands"] += 1
+            u1 = u2 = 0.0
+        self.last_cmd_t = cmd.t
+        self.last_sent = (u1, u2)
+        self._send(encode_pzthr(u1, u2))
+
     async def run(self) -> None:
         try:
             async with asyncio.TaskGroup() as tg:
                 tg.create_task(self.watch(), name=f"{self.name}.health")
                 tg.create_task(self._io_loop(), name=f"{self.name}.status")
-                tg.create_task(self._write_loop(), name=f"{self.name}.write")
                 tg.create_task(self._watchdog(), name=f"{self.name}.watchdog")
         finally:
             # last words: zero thrust, whatever ended us
             if self.tr is not None:
                 with contextlib.suppress(Exception):
-                    await asyncio.shield(self.tr.write(ZERO))
-
-    async def _write_loop(self) -> None:
-        while True:
-            cmd = await self.commands.get()
-            u1, u2 = cmd.u1, cmd.u2
-            if not (math.isfinite(u1) and math.isfinite(u2)):
-                self.counters["nonfinite_commands"] += 1
-                u1 = u2 = 0.0
-            self.last_cmd_t = cmd.t
-            self.last_sent = (u1, u2)
-            await self._send(encode_pzthr(u1, u2))
+                    self.tr.write_nowait(ZERO)
+                    self.counters["commands_sent"] += 1
 
     async def _watchdog(self) -> None:
+        clock = self.clock
         while True:
-            await asyncio.sleep(HOLD_S / 2)
-            if self.clock.now() - self.last_cmd_t > HOLD_S:
+            # wake when the last command would become too old
+            await clock.sleep_until(max(clock.now() + HOLD_S / 4, self.last_cmd_t + HOLD_S))
+            if clock.now() - self.last_cmd_t >= HOLD_S:
                 self.counters["watchdog_zero"] += 1
                 self.last_sent = (0.0, 0.0)
-                await self._send(ZERO)
+                self._send(ZERO)
 
     async def _io_loop(self) -> None:
         now = self.clock.now

@@ -17,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections import deque
+from collections.abc import Callable
 from typing import Protocol
 from urllib.parse import urlparse
 
@@ -34,6 +35,10 @@ class Transport(Protocol):
 
     async def write(self, data: bytes) -> None: ...
 
+    def write_nowait(self, data: bytes) -> None:
+        """Queue ``data`` for writing without waiting (small, rate-limited writes)."""
+        ...
+
     async def close(self) -> None: ...
 
 
@@ -45,12 +50,18 @@ class MemoryPipe:
         self._waiter: asyncio.Future[None] | None = None
         self.closed = False
         self.bytes_written = 0
+        #: if set, written bytes are handed to it at once instead of queued
+        #: (a simulated device that reacts to bytes as they arrive)
+        self.listener: Callable[[bytes], None] | None = None
 
     def write(self, data: bytes) -> None:
         if self.closed or not data:
             return
-        self._chunks.append(data)
         self.bytes_written += len(data)
+        if self.listener is not None:
+            self.listener(data)
+            return
+        self._chunks.append(data)
         w = self._waiter
         if w is not None and not w.done():
             w.set_result(None)
@@ -94,11 +105,17 @@ class MemoryTransport:
         self._tx.write(data)
 
     def write_nowait(self, data: bytes) -> None:
+        if self._tx.closed:
+            raise TransportError(f"{self.url}: closed")
         self._tx.write(data)
 
     async def close(self) -> None:
         self._rx.close()
         self._tx.close()
+
+    def on_receive(self, fn: Callable[[bytes], None]) -> None:
+        """Deliver bytes written by the far end to ``fn`` synchronously."""
+        self._rx.listener = fn
 
 
 def memory_link(name: str) -> tuple[MemoryTransport, MemoryTransport]:
@@ -142,6 +159,11 @@ class StreamTransport:
     async def write(self, data: bytes) -> None:
         self._writer.write(data)
         await self._writer.drain()
+
+    def write_nowait(self, data: bytes) -> None:
+        if self._writer.is_closing():
+            raise TransportError(f"{self.url}: closed")
+        self._writer.write(data)
 
     async def close(self) -> None:
         self._writer.close()

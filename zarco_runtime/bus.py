@@ -90,6 +90,14 @@ class Latest(Generic[M]):
         self.count += 1
 
 
+class _Listener:
+    __slots__ = ("_put", "kinds")
+
+    def __init__(self, kind: type, fn: Callable[[Any], None]) -> None:
+        self.kinds = (kind,)
+        self._put = fn
+
+
 class Bus:
     """Routes messages by their exact dataclass type."""
 
@@ -109,6 +117,17 @@ class Bus:
         lat: Latest[M] = Latest(kind)
         self._subs.setdefault(kind, []).append(lat)
         return lat
+
+    def listen(self, kind: type[M], fn: Callable[[M], None]) -> None:
+        """Call ``fn(msg)`` synchronously, in the publisher's context, for every
+        message of type ``kind``.
+
+        For bounded-time handlers whose work must happen with no scheduling
+        delay: the thruster driver putting a command on the wire, the
+        navigation estimator folding a measurement in.  ``fn`` must be quick
+        and must not raise (an exception is the publisher's).
+        """
+        self._subs.setdefault(kind, []).append(_Listener(kind, fn))
 
     def tap(self, fn: Callable[[Any], None]) -> None:
         """Call ``fn(msg)`` synchronously for every message (recorders, metrics).

@@ -2,7 +2,10 @@
 
 Every message is a frozen dataclass whose first field ``t`` is the runtime clock
 time (seconds, monotonic on the boat, virtual in simulation) at which the
-message became valid.  Units are SI and angles radians unless the field name
+message became valid.  Messages are shared by every subscriber: treat them
+as immutable.  (They are not ``frozen``: a frozen dataclass costs five times
+as much to build, and the simulation builds a few hundred per simulated
+second.)  Units are SI and angles radians unless the field name
 says otherwise (``*_deg``).  Frames follow DESIGN.md §3: local NED about the
 configured origin (x north, y east, metres), heading ψ clockwise from north,
 body x forward / y starboard, yaw rate r positive clockwise.
@@ -45,7 +48,7 @@ class HealthState(enum.Enum):
 # --------------------------------------------------------------------- GNSS
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class GpsFix:
     """A position fix (GGA, RMC or similar).
 
@@ -67,7 +70,7 @@ class GpsFix:
     age_s: float | None = None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class GpsVelocity:
     """Speed and course over ground (RMC, VTG). ``cog_rad`` is true course."""
 
@@ -79,7 +82,7 @@ class GpsVelocity:
     utc_s: float | None = None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class GpsErrorStats:
     """GST pseudorange error statistics: 1σ errors in metres."""
 
@@ -92,7 +95,7 @@ class GpsErrorStats:
     utc_s: float | None = None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class GpsTime:
     """ZDA date and time: ``utc_epoch_s`` is seconds since 1970-01-01 UTC."""
 
@@ -104,7 +107,7 @@ class GpsTime:
 # ------------------------------------------------------------ compass / IMU
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Heading:
     """A heading measurement.
 
@@ -124,7 +127,7 @@ class Heading:
     deviation_deg: float | None = None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class RateOfTurn:
     """Yaw rate from ROT (deg/min on the wire), rad/s, positive clockwise."""
 
@@ -133,7 +136,7 @@ class RateOfTurn:
     rate_rps: float
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Attitude:
     """Pitch and roll from XDR transducer sentences, radians (None if absent)."""
 
@@ -146,7 +149,7 @@ class Attitude:
 # ------------------------------------------------------------- thrusters
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class ThrusterCommand:
     """Normalised thruster commands, -100..+100 (1 = port, 2 = starboard)."""
 
@@ -156,7 +159,7 @@ class ThrusterCommand:
     reason: str = ""
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class ThrusterStatus:
     """``$PZTHS`` from the thruster controller: commands applied, rpm, amperes."""
 
@@ -172,7 +175,7 @@ class ThrusterStatus:
 # ------------------------------------------------------------ navigation
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class NavState:
     """The vessel's estimated state in the local NED frame.
 
@@ -204,7 +207,7 @@ class NavState:
 # --------------------------------------------------- guidance and control
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class GuidanceStatus:
     """Where the vessel is on its mission.
 
@@ -224,7 +227,7 @@ class GuidanceStatus:
     complete: bool = False
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class ControlStatus:
     """What the controller decided at one tick."""
 
@@ -243,7 +246,7 @@ class ControlStatus:
 # ------------------------------------------------------------ supervision
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class DeviceHealth:
     """A device driver's health and counters."""
 
@@ -254,7 +257,7 @@ class DeviceHealth:
     counters: dict[str, int] = field(default_factory=dict)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Fault:
     """A fault raised by a task (``source``) with a human-readable reason."""
 

@@ -23,7 +23,7 @@ from zarco_runtime.bus import Bus
 from zarco_runtime.clock import Clock
 from zarco_runtime.control.task import ControlTask
 from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.navigation.task import NavigationTask
+from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.settings import RuntimeConfig
 
 log = logging.getLogger("zarco.runtime")
@@ -49,7 +49,7 @@ class Runtime:
             lambda line, t: parse_compass(line, t, "compass", cmp_var), sim,
         )
         self.thrusters = ThrusterDriver(dev.thrusters, self.bus, self.clock, sim)
-        self.navigation = NavigationTask(cfg, self.bus, self.clock)
+        self.navigation = Navigation(cfg, self.bus, self.clock)
         self.control = ControlTask(cfg, self.bus, self.clock, legs)
 
     def tasks(self) -> list[tuple[str, Callable[[], object]]]:
@@ -59,7 +59,6 @@ class Runtime:
         if self.cfg.devices.compass.enabled:
             out.append(("compass", self.compass.run))
         out.append(("thrusters", self.thrusters.run))
-        out.append(("navigation", self.navigation.run))
         out.append(("control", self.control.run))
         return out
 

@@ -58,22 +58,19 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     faults: list[str] = []
     bus.tap(lambda m: faults.append(m.reason) if isinstance(m, Fault) else None)
     limit = scn.scenario.max_duration_s
-    period = 1.0 / scn.scenario.record_hz
 
-    async def recorder() -> None:
-        k = 0
-        while True:
-            t = k * period
-            await clock.sleep_until(t)
-            world.advance_to(t)
-            s = world.truth()
-            g = guid.value
-            c = cmd.value
-            log.add(t, s.x_m, s.y_m, s.psi_rad, g.leg if g else 0,
-                    c.u1 if c else 0.0, c.u2 if c else 0.0)
-            if progress is not None and k % int(max(1, 10 * scn.scenario.record_hz)) == 0:
-                progress(t, limit, g.leg if g else 0, len(legs))
-            k += 1
+    every = int(max(1, 10 * scn.scenario.record_hz))
+
+    def record(t: float) -> None:
+        s = world.truth()
+        g = guid.value
+        c = cmd.value
+        log.add(t, s.x_m, s.y_m, s.psi_rad, g.leg if g else 0,
+                c.u1 if c else 0.0, c.u2 if c else 0.0)
+        if progress is not None and len(log.t) % every == 0:
+            progress(t, limit, g.leg if g else 0, len(legs))
+
+    backend.add_periodic(scn.scenario.record_hz, record)
 
     async def supervisor() -> None:
         done = runtime.control.complete
@@ -90,7 +87,6 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
             for name, fn in backend.tasks():
                 tg.create_task(fn(), name=f"sim.{name}")
             tg.create_task(runtime.run(), name="runtime")
-            tg.create_task(recorder(), name="sim.recorder")
             tg.create_task(supervisor(), name="sim.supervisor")
     except* _Stop:
         pass

@@ -1,16 +1,18 @@
-"""The simulated-hardware backend's device tasks, on the runtime's clock.
+"""The simulated-hardware backend's devices, on the runtime's clock.
 
-Each simulated device is a task that writes real NMEA bytes into the device
-end of an in-memory port (``sim://gps``, ``sim://compass``,
-``sim://thrusters``) at its rate, after advancing the world to the current
-time; the simulated thruster controller reads ``$PZTHR`` bytes, parses them
-with the project's protocol parser and applies valid commands.  The same
-world model serves HIL, where the ports are pseudo-terminals instead.
+The simulated devices write real NMEA bytes into the device end of in-memory
+ports (``sim://gps``, ``sim://compass``, ``sim://thrusters``) at their rates,
+after advancing the world to the current time.  One scheduler task serves
+every periodic device (a heap of due times, as a discrete-event simulator
+does), so a device costs no task switch of its own.  The simulated thruster
+controller reacts to ``$PZTHR`` bytes as they arrive, parses them with the
+project's protocol parser and applies the valid ones.  The same world model
+serves HIL, where the ports are pseudo-terminals instead.
 """
 
 from __future__ import annotations
 
-import asyncio
+import heapq
 from collections import Counter
 from collections.abc import Callable
 
@@ -21,7 +23,9 @@ from drivers.transports import MemoryTransport, SimPorts
 from zarco_runtime.clock import Clock
 
 #: rate of $PZTHS status from the simulated thruster controller (Hz)
-STATUS_RATE_HZ = 10.0
+STATUS_RATE_HZ = 5.0
+
+Emitter = Callable[[float], None]
 
 
 class SimBackend:
@@ -34,54 +38,49 @@ class SimBackend:
         self.compass_port: MemoryTransport = ports.create("compass")
         self.thruster_port: MemoryTransport = ports.create("thrusters")
         self.counters: Counter[str] = Counter()
-
-    def tasks(self) -> list[tuple[str, Callable[[], object]]]:
-        return [
-            ("gps", self.gps),
-            ("compass", self.compass),
-            ("thruster_controller", self.thruster_controller),
-            ("thruster_status", self.thruster_status),
+        self._framer = NmeaFramer()
+        self.thruster_port.on_receive(self._on_thruster_bytes)
+        w = world
+        self._devices: list[tuple[float, Emitter]] = [
+            (w.params.gps.rate_hz, lambda t: self.gps_port.write_nowait(w.gps_bytes(t))),
+            (w.params.compass.rate_hz,
+             lambda t: self.compass_port.write_nowait(w.compass_bytes(t))),
+            (STATUS_RATE_HZ,
+             lambda t: self.thruster_port.write_nowait(w.thruster_status_bytes(t))),
         ]
 
-    async def _periodic(self, rate_hz: float, emit: Callable[[float], bytes],
-                        port: MemoryTransport) -> None:
+    def add_periodic(self, rate_hz: float, fn: Emitter) -> None:
+        """Call ``fn(t)`` at ``rate_hz`` after the world has advanced to ``t``
+        (before starting; used for the true-track recorder)."""
+        self._devices.append((rate_hz, fn))
+
+    def tasks(self) -> list[tuple[str, Callable[[], object]]]:
+        return [("devices", self.run_devices)]
+
+    async def run_devices(self) -> None:
+        """Emit every periodic device's output when it is due, in a fixed order."""
         clock, world = self.clock, self.world
-        period = 1.0 / rate_hz
-        k = 0
+        # (due time, device index, period index): ties resolve by device index
+        heap = [(1.0 / rate, i, 1) for i, (rate, _fn) in enumerate(self._devices)]
+        heapq.heapify(heap)
         while True:
-            k += 1
-            await clock.sleep_until(k * period)
+            due, i, k = heap[0]
+            await clock.sleep_until(due)
             t = clock.now()
             world.advance_to(t)
-            data = emit(t)
-            if data:
-                port.write_nowait(data)
+            while heap and heap[0][0] <= t + 1e-9:
+                due, i, k = heapq.heappop(heap)
+                rate, fn = self._devices[i]
+                fn(t)
+                heapq.heappush(heap, ((k + 1) / rate, i, k + 1))
 
-    async def gps(self) -> None:
-        await self._periodic(self.world.params.gps.rate_hz, self.world.gps_bytes, self.gps_port)
-
-    async def compass(self) -> None:
-        await self._periodic(self.world.params.compass.rate_hz, self.world.compass_bytes,
-                             self.compass_port)
-
-    async def thruster_status(self) -> None:
-        await self._periodic(STATUS_RATE_HZ, self.world.thruster_status_bytes,
-                             self.thruster_port)
-
-    async def thruster_controller(self) -> None:
-        framer = NmeaFramer()
-        port = self.thruster_port
-        while True:
-            chunk = await port.read()
-            if not chunk:
-                await asyncio.sleep(0.1)
+    def _on_thruster_bytes(self, data: bytes) -> None:
+        t = self.clock.now()
+        for line in self._framer.feed(data):
+            try:
+                u1, u2 = parse_pzthr(line)
+            except NmeaError as exc:
+                self.counters[exc.reason] += 1
                 continue
-            t = self.clock.now()
-            for line in framer.feed(chunk):
-                try:
-                    u1, u2 = parse_pzthr(line)
-                except NmeaError as exc:
-                    self.counters[exc.reason] += 1
-                    continue
-                self.counters["commands"] += 1
-                self.world.command(t, u1, u2)
+            self.counters["commands"] += 1
+            self.world.command(t, u1, u2)

@@ -98,6 +98,7 @@ class SimpleNavigator:
         self.e = _Axis()
         self.t_pos: float | None = None
         self.t_fix: float | None = None
+        self.fix_utc_s: float | None = None
         self.fix = FixQuality.NONE
         self.lat = math.nan
         self.lon = math.nan
@@ -129,6 +130,9 @@ class SimpleNavigator:
         if not (math.isfinite(m.lat_deg) and math.isfinite(m.lon_deg)):
             self.rejected += 1
             return
+        if m.utc_s is not None and m.utc_s == self.fix_utc_s and m.t - (self.t_fix or 0.0) < 0.5:
+            return  # GGA and RMC of one epoch carry the same measurement: use it once
+        self.fix_utc_s = m.utc_s
         x, y = self.frame.to_ned(m.lat_deg, m.lon_deg)
         sigma = FIX_SIGMA_M.get(m.fix, 2.0)
         r = sigma * sigma
@@ -166,6 +170,10 @@ class SimpleNavigator:
         self.rate = m.rate_rps
         self.t_rate = m.t
         self.r_est = m.rate_rps - self.gyro_bias
+
+    def has_gyro(self, t: float) -> bool:
+        """True while yaw-rate measurements are arriving."""
+        return self.t_rate is not None and t - self.t_rate < self.cfg.heading_timeout_s
 
     def on_heading(self, m: Heading) -> None:
         psi_m = m.heading_rad

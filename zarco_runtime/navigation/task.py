@@ -1,4 +1,9 @@
-"""Navigation task: GPS / compass / gyro messages → NavState on the bus."""
+"""Navigation on the bus: GPS / compass / gyro messages → NavState.
+
+The estimator folds each measurement in as it is published (a bus listener:
+bounded-time work, done in the publishing driver's context, so a fix reaches
+the controller with no scheduling delay) and publishes the updated NavState.
+"""
 
 from __future__ import annotations
 
@@ -10,8 +15,8 @@ from zarco_runtime.navigation.simple import SimpleNavigator
 from zarco_runtime.settings import RuntimeConfig
 
 
-class NavigationTask:
-    """Feeds the estimator every measurement in order; publishes after each batch."""
+class Navigation:
+    """Wires a navigator to the bus."""
 
     def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock) -> None:
         o = cfg.origin
@@ -19,24 +24,23 @@ class NavigationTask:
                                    cfg.devices.compass.variation_deg)
         self.bus = bus
         self.clock = clock
-        self.sub = bus.subscribe(GpsFix, GpsVelocity, Heading, RateOfTurn, maxlen=512)
+        bus.listen(GpsFix, self._on_fix)
+        bus.listen(GpsVelocity, self.nav.on_velocity)
+        bus.listen(Heading, self._on_heading)
+        bus.listen(RateOfTurn, self._on_rate)
 
-    def handle(self, m: object) -> None:
-        nav = self.nav
-        if isinstance(m, GpsFix):
-            nav.on_fix(m)
-        elif isinstance(m, GpsVelocity):
-            nav.on_velocity(m)
-        elif isinstance(m, Heading):
-            nav.on_heading(m)
-        elif isinstance(m, RateOfTurn):
-            nav.on_rate(m)
+    def _publish(self, t: float) -> None:
+        self.bus.publish(self.nav.state(t))
 
-    async def run(self) -> None:
-        sub = self.sub
-        while True:
-            m = await sub.get()
-            self.handle(m)
-            for m2 in sub.drain():
-                self.handle(m2)
-            self.bus.publish(self.nav.state(self.clock.now()))
+    def _on_fix(self, m: GpsFix) -> None:
+        self.nav.on_fix(m)
+        self._publish(m.t)
+
+    def _on_heading(self, m: Heading) -> None:
+        self.nav.on_heading(m)
+        if not self.nav.has_gyro(m.t):  # with a gyro, the ROT that follows publishes
+            self._publish(m.t)
+
+    def _on_rate(self, m: RateOfTurn) -> None:
+        self.nav.on_rate(m)
+        self._publish(m.t)
