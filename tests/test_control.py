@@ -50,7 +50,8 @@ def test_offset_to_starboard_turns_to_port() -> None:
     dem = c.step(nav(y=0.5), leg, d=0.5)
     assert dem.psi_ref_rad < 0.0  # heading reference to port of the line
     assert dem.n_nm < 0.0         # moment to port (anticlockwise)
-    dem2 = c.step(nav(y=-0.5), leg, d=-0.5)
+    c2 = LineController(VM, CTL, VM.thruster_lag_s, DT)
+    dem2 = c2.step(nav(y=-0.5), leg, d=-0.5)
     assert dem2.psi_ref_rad > 0.0 and dem2.n_nm > 0.0
 
 

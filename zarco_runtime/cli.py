@@ -27,7 +27,8 @@ def summary(report: dict[str, Any]) -> str:
         f"cross-track (≥15 m into each leg): RMS {_fmt(report['xtrack_rms_m'])}  "
         f"p95 {_fmt(report['xtrack_p95_m'])}  max {_fmt(report['xtrack_max_m'])}",
         f"corner overshoot max {_fmt(report['corner_overshoot_max_m'])}   "
-        f"thrusters saturated {100 * report['saturation_fraction']:.1f} % of ticks",
+        f"thrusters saturated {100 * report['saturation_fraction']:.1f} % of ticks, "
+        f"command steps {report['command_step_rms']:.1f} % RMS",
         "",
         " leg  speed    RMS      p95      max    overshoot",
     ]

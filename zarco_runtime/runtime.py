@@ -15,7 +15,6 @@ from collections.abc import Callable
 
 from drivers.compass_parser import parse_compass
 from drivers.gps_parser import parse_gps
-
 from drivers.nmea_device import NmeaDevice
 from drivers.thruster_driver import ThrusterDriver
 from drivers.transports import SimPorts

@@ -117,8 +117,10 @@ class Navigation:
     """First navigation estimate: per-axis constant-velocity filter on GPS, and a
     complementary filter of compass heading with the gyro rate."""
 
-    pos_tau_s: float = spec(0.3, "s", "GPS position smoothing time constant", min=0.0, max=10.0)
-    vel_tau_s: float = spec(0.6, "s", "GPS velocity blending time constant", min=0.01, max=10.0)
+    accel_psd: float = spec(0.02, "m²/s³", "acceleration noise density of the "
+                            "constant-velocity position filter", min=1e-6, max=100.0)
+    sog_sigma_mps: float = spec(0.05, "m/s", "1σ assumed for GPS speed/course over ground "
+                                "(DESIGN.md §4: 0.05)", min=0.001, max=10.0)
     heading_tau_s: float = spec(3.0, "s", "compass/gyro complementary time constant",
                                 min=0.05, max=60.0)
     gyro_bias_tau_s: float = spec(60.0, "s", "gyro bias estimation time constant",
@@ -139,12 +141,16 @@ class Control:
 
     rate_hz: float = spec(20.0, "Hz", "control and thruster command rate", min=1.0, max=200.0)
     # LQR weights: the largest acceptable excursion of each state
-    lqr_d_m: float = spec(0.05, "m", "cross-track error scale", min=1e-4, max=100.0)
-    lqr_int_ms: float = spec(0.2, "m s", "integral of cross-track error scale", min=1e-4, max=1e4)
-    lqr_psi_deg: float = spec(3.0, "deg", "heading error scale", min=0.01, max=90.0)
+    lqr_d_m: float = spec(0.015, "m", "cross-track error scale", min=1e-4, max=100.0)
+    lqr_int_ms: float = spec(0.05, "m s", "integral of cross-track error scale", min=1e-4, max=1e4)
+    lqr_psi_deg: float = spec(10.0, "deg", "heading error scale", min=0.01, max=90.0)
     lqr_r_dps: float = spec(10.0, "deg/s", "yaw rate scale", min=0.01, max=360.0)
     lqr_v_mps: float = spec(0.5, "m/s", "sway speed scale", min=1e-3, max=10.0)
-    lqr_n_nm: float = spec(10.0, "N m", "yaw moment scale", min=0.01, max=1000.0)
+    lqr_n_nm: float = spec(20.0, "N m", "yaw moment scale", min=0.01, max=1000.0)
+    xtrack_rate_tau_s: float = spec(0.5, "s", "low-pass of the GPS part of the cross-track "
+                                    "rate (sway, current)", min=0.001, max=60.0)
+    xtrack_tau_s: float = spec(0.5, "s", "time constant pulling the smoothed cross-track "
+                               "error to the GPS one", min=0.001, max=60.0)
     integral_window_m: float = spec(1.0, "m", "integrate d only while |d| is below this",
                                     min=0.0, max=100.0)
     max_intercept_deg: float = spec(60.0, "deg", "largest course offset to the line",

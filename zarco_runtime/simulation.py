@@ -17,9 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from drivers.sim.world import SimWorld
-
 from drivers.sim.backend import SimBackend
+from drivers.sim.world import SimWorld
 from drivers.transports import SimPorts
 from zarco_runtime.bus import Bus
 from zarco_runtime.clock import Clock, run_virtual
@@ -101,6 +100,17 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     counters["sim_thruster_controller"] = backend.counters
 
 
+def command_step_rms(log: TrackLog) -> float:
+    """RMS change of the thruster commands between true-track samples (% of full
+    scale, both thrusters): how busy the thrusters are kept."""
+    import numpy as np
+
+    if len(log.u1) < 2:
+        return 0.0
+    du = np.concatenate([np.diff(log.u1), np.diff(log.u2)])
+    return round(float(np.sqrt(np.mean(du * du))), 3)
+
+
 def run_scenario(scn: Scenario, progress: ProgressFn | None = None) -> SimResult:
     """Simulate ``scn`` to the end of its mission (or its time limit)."""
     o = scn.runtime.origin
@@ -121,6 +131,7 @@ def run_scenario(scn: Scenario, progress: ProgressFn | None = None) -> SimResult
         "speedup": round(sim_s / wall, 1) if wall > 0 else math.inf,
         **line_figures(log, legs),
         "saturation_fraction": counters.get("saturated_ticks", 0) / ticks,
+        "command_step_rms": command_step_rms(log),
         "faults": counters.get("faults", []),
         "devices": counters.get("devices", {}),
         "sim_thruster_controller": counters.get("sim_thruster_controller", {}),

@@ -102,6 +102,9 @@ class LineController:
         self._last_sigma_parts = (0.0, 0.0, 0.0)
         self._k: tuple[float, ...] = self.schedule.at(1.0)
         self._d = 0.0
+        self.rho = 0.0
+        self.d_hat = 0.0
+        self._fresh_leg = True
 
     def feedforward_n(self, u_w: float) -> float:
         """F_f(u): thrust (N) that balances surge damping at water speed u_w."""
@@ -110,6 +113,7 @@ class LineController:
     def reset_leg(self, leg: Leg) -> None:
         self.leg_index = leg.index
         self.l_int = 0.0
+        self._fresh_leg = True
 
     def step(self, nav: NavState, leg: Leg, d: float) -> Demand:
         """Demands for this tick from the navigation state and line geometry."""
@@ -119,9 +123,24 @@ class LineController:
         u_ref = leg.speed_mps
         psi_t = leg.course_rad
         ct, st = math.cos(psi_t), math.sin(psi_t)
-        # cross-track rate from ground velocity, and the along-line ground speed
-        d_dot = -nav.vn_mps * st + nav.ve_mps * ct
+        # cross-track rate: the part the heading explains (u_w sin e, clean: compass +
+        # gyro) plus the rest (sway, current, bias) seen from GPS velocity and
+        # low-passed; cross-track error: GPS d, smoothed along that rate
         u_g = nav.vn_mps * ct + nav.ve_mps * st
+        d_dot_gps = -nav.vn_mps * st + nav.ve_mps * ct
+        u_w = max(0.0, self.current.u_w)
+        d_dot_hdg = u_w * math.sin(wrap(nav.psi_rad - psi_t))
+        tau_r, tau_d = ctl.xtrack_rate_tau_s, ctl.xtrack_tau_s
+        if self._fresh_leg:
+            self.rho = d_dot_gps - d_dot_hdg
+            self.d_hat = d
+            self._fresh_leg = False
+        else:
+            self.rho += min(1.0, self.dt / tau_r) * (d_dot_gps - d_dot_hdg - self.rho)
+            self.d_hat += (d_dot_hdg + self.rho) * self.dt
+            self.d_hat += min(1.0, self.dt / tau_d) * (d - self.d_hat)
+        d_dot = d_dot_hdg + self.rho
+        d = self.d_hat
         # current: cross-line component → crab angle; along-line → water speed
         c_perp = -self.current.cn * st + self.current.ce * ct
         c_along = self.current.cn * ct + self.current.ce * st

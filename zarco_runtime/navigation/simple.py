@@ -33,10 +33,6 @@ FIX_SIGMA_M = {
     FixQuality.DGPS: 0.7,
     FixQuality.SINGLE: 2.0,
 }
-#: 1σ of GPS speed over ground (m/s), DESIGN.md §4.
-SOG_SIGMA_MPS = 0.05
-#: acceleration noise spectral density of the constant-velocity model (m²/s³).
-ACCEL_PSD = 0.02
 
 
 def wrap(a: float) -> float:
@@ -119,8 +115,8 @@ class SimpleNavigator:
             return
         dt = t - self.t_pos
         if dt > 0:
-            self.n.predict(dt, ACCEL_PSD)
-            self.e.predict(dt, ACCEL_PSD)
+            self.n.predict(dt, self.cfg.accel_psd)
+            self.e.predict(dt, self.cfg.accel_psd)
             self.t_pos = t
 
     def on_fix(self, m: GpsFix) -> None:
@@ -152,7 +148,7 @@ class SimpleNavigator:
         if self.t_fix is None or m.cog_rad is None or not math.isfinite(m.sog_mps):
             return
         self._predict_pos(m.t)
-        r = SOG_SIGMA_MPS**2
+        r = self.cfg.sog_sigma_mps**2
         self.n.update_vel(m.sog_mps * math.cos(m.cog_rad), r)
         self.e.update_vel(m.sog_mps * math.sin(m.cog_rad), r)
 
