@@ -26,7 +26,8 @@ def summary(report: dict[str, Any]) -> str:
         f"= {report['speedup']:.0f}× real time",
         f"cross-track (≥15 m into each leg): RMS {_fmt(report['xtrack_rms_m'])}  "
         f"p95 {_fmt(report['xtrack_p95_m'])}  max {_fmt(report['xtrack_max_m'])}",
-        f"corner overshoot max {_fmt(report['corner_overshoot_max_m'])}   "
+        f"corner overshoot max {_fmt(report['corner_overshoot_max_m'])} "
+        f"(outside the turn {_fmt(report['corner_overshoot_outside_max_m'])})   "
         f"thrusters saturated {100 * report['saturation_fraction']:.1f} % of ticks, "
         f"command steps {report['command_step_rms']:.1f} % RMS",
         "",
@@ -117,6 +118,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--config", required=True, help="runtime TOML (config/zarco.toml)")
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     r.set_defaults(func=cmd_run)
+
+    from hil.cli import register
+
+    register(sub)
     return p
 
 

@@ -2,7 +2,10 @@
 
 Cross-track error of a leg is measured from 15 m after the leg starts (along
 the line) to its end (when the next leg becomes active); a leg's overshoot is
-its largest cross-track error within its first 15 m.  Percentiles use the
+its largest cross-track error within its first 15 m (``overshoot_m``, the
+issue's definition); ``overshoot_outside_m`` keeps only the part on the
+outside of the turn, which is what an anticipating turn removes (it starts
+the new line a little inside it instead).  Percentiles use the
 nearest-rank-interpolated definition of numpy.
 """
 
@@ -72,6 +75,7 @@ def line_figures(log: TrackLog, legs: list[Leg]) -> dict[str, Any]:
     per_leg = []
     settled_all = []
     overshoots = []
+    outsides: list[float] = []
     for leg in legs:
         sel = leg_idx == leg.index
         if not sel.any():
@@ -80,11 +84,21 @@ def line_figures(log: TrackLog, legs: list[Leg]) -> dict[str, Any]:
         settled = dd[a >= SETTLE_M]
         early = dd[a < SETTLE_M]
         ov = float(np.abs(early).max()) if early.size else 0.0
+        # the part of it on the outside of the turn into this leg (a left turn
+        # overshoots to starboard of the new line, a right turn to port)
+        outside = 0.0
+        if leg.index > 0 and early.size:
+            turn = math.remainder(leg.course_rad - legs[leg.index - 1].course_rad, math.tau)
+            side = early if turn < 0 else -early
+            outside = max(0.0, float(side.max()))
         per_leg.append({"leg": leg.index, "speed_mps": leg.speed_mps, **_stats(settled),
-                        "overshoot_m": ov, "samples": int(settled.size)})
+                        "overshoot_m": ov, "overshoot_outside_m": outside,
+                        "samples": int(settled.size)})
         settled_all.append(settled)
         if leg.index > 0:
             overshoots.append(ov)
+            outsides.append(outside)
     allv = np.concatenate(settled_all) if settled_all else np.empty(0)
     return {**_stats(allv), "corner_overshoot_max_m": max(overshoots) if overshoots else 0.0,
+            "corner_overshoot_outside_max_m": max(outsides) if outsides else 0.0,
             "legs": per_leg}
