@@ -154,6 +154,7 @@ class NmeaDevice(DeviceLink):
         while True:
             tr = await self.open()
             framer = NmeaFramer()
+            base = self.counters["bytes_discarded"]  # counters span reconnections
             try:
                 while True:
                     chunk = await tr.read()
@@ -163,7 +164,7 @@ class NmeaDevice(DeviceLink):
                     t = now()
                     for line in framer.feed(chunk):
                         self.handle_line(line, t)
-                    self.counters["bytes_discarded"] = framer.bytes_discarded
+                    self.counters["bytes_discarded"] = base + framer.bytes_discarded
             except (TransportError, OSError) as exc:
                 self.counters["reconnects"] += 1
                 self.set_state(HealthState.DISCONNECTED, str(exc))
