@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from zarco_runtime.config import spec
+from zarco_runtime.guidance.follow import FollowSettings
 
 # Bollard-pull calibration of one Zarco thruster (command → thrust, N), sampled
 # from the design curve of DESIGN.md §4 (deadband ±5, 125 N forward, 75 N
@@ -191,4 +192,5 @@ class RuntimeConfig:
     navigation: Navigation = spec(Navigation)
     control: Control = spec(Control)
     guidance: Guidance = spec(Guidance)
+    follow: FollowSettings = spec(FollowSettings)
     failsafe: Failsafe = spec(Failsafe)

@@ -104,6 +104,8 @@ class LineController:
         self._d = 0.0
         self.rho = 0.0
         self.d_hat = 0.0
+        self.s_int = 0.0
+        self._lead = 0.0
         self._fresh_leg = True
 
     def feedforward_n(self, u_w: float) -> float:
@@ -115,8 +117,13 @@ class LineController:
         self.l_int = 0.0
         self._fresh_leg = True
 
-    def step(self, nav: NavState, leg: Leg, d: float) -> Demand:
-        """Demands for this tick from the navigation state and line geometry."""
+    def step(self, nav: NavState, leg: Leg, d: float, along_err: float | None = None,
+             k_s: float = 0.0, k_i: float = 0.0, along_clamp: float = 10.0) -> Demand:
+        """Demands for this tick from the navigation state and line geometry.
+
+        ``along_err`` (following the AUV): s_AUV − s, how far the target is ahead
+        along the line (m); it adds k_s·lead + k_i·∫lead to the surge force.
+        """
         if leg.index != self.leg_index:
             self.reset_leg(leg)
         ctl = self.ctl
@@ -157,10 +164,27 @@ class LineController:
         n_cmd = k_psi * wrap(psi_ref - nav.psi_rad) - k_r * nav.r_rps - k_n * self.nt
         x_cmd = (self.feedforward_n(u_w_ref) + ctl.speed_kp * (u_ref - u_g)
                  + ctl.speed_ki * self.u_int)
+        self._lead = 0.0
+        if along_err is not None and math.isfinite(along_err):
+            self._lead = max(-along_clamp, min(along_clamp, along_err))
+            x_cmd += k_s * self._lead + k_i * self.s_int
         self._d = d
         self._u_err = u_ref - u_g
         self._sigma_sat = abs(math.atan(sigma)) >= lim
         return Demand(x_cmd, n_cmd, psi_ref, psi0)
+
+    def hold(self, nav: NavState, psi_hold: float) -> Demand:
+        """Slow down and keep heading ``psi_hold`` (track lost, or inside the hold
+        radius): brake with the speed gain, heading-hold PD on yaw."""
+        ctl = self.ctl
+        u_g = nav.vn_mps * math.cos(nav.psi_rad) + nav.ve_mps * math.sin(nav.psi_rad)
+        self._d = 0.0
+        self._u_err = 0.0
+        self._lead = 0.0
+        self._sigma_sat = True  # no cross-track integration while holding
+        x_cmd = -ctl.speed_kp * u_g
+        n_cmd = ctl.heading_kp * wrap(psi_hold - nav.psi_rad) - ctl.heading_kd * nav.r_rps
+        return Demand(x_cmd, n_cmd, psi_hold, psi_hold)
 
     def commit(self, nav: NavState, alloc: Allocation) -> None:
         """Update integrators and internal states with what was actually commanded."""
@@ -175,6 +199,9 @@ class LineController:
         ue = self._u_err
         if not ((alloc.sat_x > 0 and ue > 0) or (alloc.sat_x < 0 and ue < 0)):
             self.u_int += ue * dt
+        le = self._lead
+        if le and not ((alloc.sat_x > 0 and le > 0) or (alloc.sat_x < 0 and le < 0)):
+            self.s_int += le * dt
         # moment actually produced, through the thruster lag
         self.nt += (alloc.n_nm - self.nt) * min(1.0, dt / self.lag_s)
         self.current.step(nav, alloc.x_n, dt)

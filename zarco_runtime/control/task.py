@@ -19,8 +19,9 @@ import math
 from zarco_runtime.bus import Bus
 from zarco_runtime.clock import Clock
 from zarco_runtime.control.allocation import ZERO, Allocation, allocate
-from zarco_runtime.control.line_tracking import LineController
+from zarco_runtime.control.line_tracking import Demand, LineController
 from zarco_runtime.control.thruster_map import ThrusterMap
+from zarco_runtime.guidance.follow import FollowGuidance
 from zarco_runtime.guidance.lines import LineGuidance
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.messages import (
@@ -31,12 +32,14 @@ from zarco_runtime.messages import (
     ThrusterCommand,
 )
 from zarco_runtime.settings import RuntimeConfig
+from zarco_runtime.tracking.messages import AuvTrack
 
 log = logging.getLogger("zarco.control")
 
 
 class ControlTask:
-    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock, legs: list[Leg]) -> None:
+    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock, legs: list[Leg],
+                 mode: str = "lines") -> None:
         self.cfg = cfg
         self.bus = bus
         self.clock = clock
@@ -49,6 +52,10 @@ class ControlTask:
             legs, cfg.guidance.switching, math.radians(cfg.guidance.turn_rate_dps)
         ) if legs else None
         self.ctl = LineController(cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt)
+        self.mode = mode
+        self.follow = FollowGuidance(cfg.follow) if mode == "follow" else None
+        self.track = bus.latest(AuvTrack)
+        self._psi_hold: float | None = None
         self.complete = asyncio.Event()
         self.invalid_since: float | None = None
         self.fault = ""
@@ -68,7 +75,7 @@ class ControlTask:
         bus = self.bus
         nav = self.nav.value
         self.ticks += 1
-        if nav is None or self.guidance is None:
+        if nav is None or (self.guidance is None and self.follow is None):
             return ZERO
         # extrapolate the estimate to now
         age = t - nav.t
@@ -85,6 +92,11 @@ class ControlTask:
                 return ZERO
         else:
             self.invalid_since = None
+        nav_now = NavState(t, x, y, nav.vn_mps, nav.ve_mps, psi, nav.r_rps, nav.u_mps,
+                           nav.v_mps, nav.lat_deg, nav.lon_deg, nav.fix, nav.pos_valid,
+                           nav.heading_valid)
+        if self.follow is not None:
+            return self._tick_follow(t, nav_now)
         ls = self.guidance.update(x, y)
         bus.publish(GuidanceStatus(t, "lines", ls.leg.index, len(self.guidance.legs),
                                    ls.along_m, ls.xtrack_m, ls.leg.course_rad,
@@ -92,10 +104,32 @@ class ControlTask:
         if ls.complete:
             self.complete.set()
             return ZERO
-        nav_now = NavState(t, x, y, nav.vn_mps, nav.ve_mps, psi, nav.r_rps, nav.u_mps,
-                           nav.v_mps, nav.lat_deg, nav.lon_deg, nav.fix, nav.pos_valid,
-                           nav.heading_valid)
         dem = self.ctl.step(nav_now, ls.leg, ls.xtrack_m)
+        return self._apply(t, nav_now, dem)
+
+    def _tick_follow(self, t: float, nav: NavState) -> Allocation:
+        assert self.follow is not None
+        fcfg = self.cfg.follow
+        fs = self.follow.update(self.track.value, t, nav.x_m, nav.y_m)
+        if fs.mode != "follow" and fs.reason and fs.reason != self.fault:
+            log.info("follow: %s: %s", fs.mode, fs.reason)
+        self.bus.publish(GuidanceStatus(t, f"follow:{fs.mode}", fs.leg.index if fs.leg else -1,
+                                        0, fs.along_error_m, fs.d_m,
+                                        fs.leg.course_rad if fs.leg else nav.psi_rad,
+                                        fs.speed_ref_mps))
+        if fs.leg is None:
+            if self._psi_hold is None:
+                self._psi_hold = nav.psi_rad
+            dem = self.ctl.hold(nav, self._psi_hold)
+        else:
+            self._psi_hold = None
+            along = fs.along_error_m if fs.mode == "follow" else None
+            dem = self.ctl.step(nav, fs.leg, fs.leg.project(nav.x_m, nav.y_m)[1], along,
+                                fcfg.k_s, fcfg.k_i, fcfg.along_clamp_m)
+        return self._apply(t, nav, dem)
+
+    def _apply(self, t: float, nav_now: NavState, dem: Demand) -> Allocation:
+        bus = self.bus
         alloc = allocate(dem.x_n, dem.n_nm, self.cfg.vessel.b_m, self.port, self.stbd)
         if alloc.fault or not (math.isfinite(alloc.u1) and math.isfinite(alloc.u2)):
             self._raise_fault(t, f"non-finite control output ({alloc.fault or 'command'}); "
