@@ -13,6 +13,7 @@ import asyncio
 import logging
 from collections.abc import Callable
 
+from drivers.buoy_parser import parse_buoy
 from drivers.compass_parser import parse_compass
 from drivers.gps_parser import parse_gps
 from drivers.nmea_device import NmeaDevice
@@ -24,6 +25,7 @@ from zarco_runtime.control.task import ControlTask
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.settings import RuntimeConfig
+from zarco_runtime.tracking.task import Tracking
 
 log = logging.getLogger("zarco.runtime")
 
@@ -32,7 +34,8 @@ class Runtime:
     """Builds every task from a validated configuration (nothing starts on error)."""
 
     def __init__(self, cfg: RuntimeConfig, legs: list[Leg], bus: Bus | None = None,
-                 clock: Clock | None = None, sim: SimPorts | None = None) -> None:
+                 clock: Clock | None = None, sim: SimPorts | None = None,
+                 mode: str = "lines") -> None:
         self.cfg = cfg
         self.bus = bus or Bus()
         self.clock = clock or Clock()
@@ -49,7 +52,13 @@ class Runtime:
         )
         self.thrusters = ThrusterDriver(dev.thrusters, self.bus, self.clock, sim)
         self.navigation = Navigation(cfg, self.bus, self.clock)
-        self.control = ControlTask(cfg, self.bus, self.clock, legs)
+        self.control = ControlTask(cfg, self.bus, self.clock, legs, mode)
+        self.buoy: NmeaDevice | None = None
+        self.tracking: Tracking | None = None
+        if dev.buoy.enabled:
+            self.buoy = NmeaDevice("buoy", dev.buoy, self.bus, self.clock,
+                                   lambda line, t: parse_buoy(line, t, "buoy"), sim)
+            self.tracking = Tracking(cfg.tracker, self.bus, self.clock)
 
     def tasks(self) -> list[tuple[str, Callable[[], object]]]:
         out: list[tuple[str, Callable[[], object]]] = []
@@ -58,6 +67,9 @@ class Runtime:
         if self.cfg.devices.compass.enabled:
             out.append(("compass", self.compass.run))
         out.append(("thrusters", self.thrusters.run))
+        if self.buoy is not None and self.tracking is not None:
+            out.append(("buoy", self.buoy.run))
+            out.append(("tracking", self.tracking.run))
         out.append(("control", self.control.run))
         return out
 

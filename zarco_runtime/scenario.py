@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from drivers.sim.acoustics import LblParams
+from drivers.sim.auv import AuvParams
 from drivers.sim.params import WorldParams
 
 from zarco_runtime.config import ConfigError, apply_overrides, build, load_toml, spec
@@ -40,6 +42,9 @@ class Scenario:
     world: WorldParams = spec(WorldParams)
     mission: MissionConfig = spec(MissionConfig)
     runtime: RuntimeConfig = spec(RuntimeConfig)
+    auv: AuvParams | None = spec(None, "", "the simulated AUV (follow scenarios)")
+    lbl: LblParams | None = spec(None, "", "the simulated LBL network and buoy (follow "
+                                 "scenarios)")
 
 
 def load_scenario(path: str | Path, overrides: list[str] | None = None,
@@ -54,6 +59,11 @@ def load_scenario(path: str | Path, overrides: list[str] | None = None,
         if seed < 0:
             raise ConfigError(file, "scenario.seed", f"must be ≥ 0, got {seed}")
         scn.scenario.seed = seed
+    if scn.mission.kind == "follow":
+        if scn.auv is None or scn.lbl is None:
+            raise ConfigError(file, "mission.kind",
+                              "a follow mission needs the [auv] and [lbl] tables")
+        scn.runtime.devices.buoy.enabled = True
     if "origin" not in data.get("runtime", {}):
         w = scn.world
         scn.runtime.origin.lat_deg = w.origin_lat_deg

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from zarco_runtime.config import spec
 from zarco_runtime.guidance.follow import FollowSettings
+from zarco_runtime.tracking.params import TrackerParams
 
 # Bollard-pull calibration of one Zarco thruster (command → thrust, N), sampled
 # from the design curve of DESIGN.md §4 (deadband ±5, 125 N forward, 75 N
@@ -60,6 +61,8 @@ class Devices:
     gps: Device = spec(lambda: Device(url="sim://gps"))
     compass: Device = spec(lambda: Device(url="sim://compass"))
     thrusters: Device = spec(lambda: Device(url="sim://thrusters"))
+    buoy: Device = spec(lambda: Device(url="sim://buoy", enabled=False, stale_s=5.0),
+                        doc="radio feed of the LBL listening buoy ($PZBAE, $PZBST)")
 
 
 @dataclass(slots=True)
@@ -193,4 +196,5 @@ class RuntimeConfig:
     control: Control = spec(Control)
     guidance: Guidance = spec(Guidance)
     follow: FollowSettings = spec(FollowSettings)
+    tracker: TrackerParams = spec(TrackerParams)
     failsafe: Failsafe = spec(Failsafe)

@@ -17,6 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from drivers.sim.acoustics import AcousticWorld
+from drivers.sim.auv import Auv
 from drivers.sim.backend import SimBackend
 from drivers.sim.world import SimWorld
 from drivers.transports import SimPorts
@@ -27,7 +29,9 @@ from zarco_runtime.guidance.mission import Leg, build_legs
 from zarco_runtime.messages import Fault, GuidanceStatus, ThrusterCommand
 from zarco_runtime.runtime import Runtime
 from zarco_runtime.scenario import Scenario
+from zarco_runtime.follow_report import follow_figures
 from zarco_runtime.sim_report import TrackLog, line_figures
+from zarco_runtime.tracking.messages import AuvFix, AuvTrack
 
 ProgressFn = Callable[[float, float, int, int], None]
 
@@ -42,6 +46,7 @@ class SimResult:
     legs: list[Leg]
     log: TrackLog
     report: dict[str, Any]
+    extra: dict[str, Any]
 
 
 async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
@@ -51,7 +56,18 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     bus = Bus()
     ports = SimPorts()
     backend = SimBackend(world, ports, clock)
-    runtime = Runtime(scn.runtime, legs, bus, clock, sim=ports)
+    follow = scn.mission.kind == "follow"
+    acoustics: AcousticWorld | None = None
+    if follow and scn.auv is not None and scn.lbl is not None:
+        acoustics = AcousticWorld(scn.lbl, Auv(scn.auv), scn.scenario.seed + 1_000_003,
+                                  world.utc_epoch_s(0.0),
+                                  (scn.world.origin_lat_deg, scn.world.origin_lon_deg))
+        backend.add_acoustics(acoustics)
+        counters["acoustics"] = acoustics
+        bus.tap(lambda m: counters.setdefault("auv_msgs", []).append(m)
+                if isinstance(m, (AuvFix, AuvTrack)) else None)
+    runtime = Runtime(scn.runtime, legs, bus, clock, sim=ports,
+                      mode="follow" if follow else "lines")
     guid = bus.latest(GuidanceStatus)
     cmd = bus.latest(ThrusterCommand)
     faults: list[str] = []
@@ -59,6 +75,7 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     limit = scn.scenario.max_duration_s
 
     every = int(max(1, 10 * scn.scenario.record_hz))
+    auv_log: list[tuple[float, float, float, float]] = counters.setdefault("auv_log", [])
 
     def record(t: float) -> None:
         s = world.truth()
@@ -66,13 +83,16 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         c = cmd.value
         log.add(t, s.x_m, s.y_m, s.psi_rad, g.leg if g else 0,
                 c.u1 if c else 0.0, c.u2 if c else 0.0)
+        if acoustics is not None:
+            a = acoustics.auv_truth(t)
+            auv_log.append((t, a.x_m, a.y_m, a.psi_rad))
         if progress is not None and len(log.t) % every == 0:
             progress(t, limit, g.leg if g else 0, len(legs))
 
     backend.add_periodic(scn.scenario.record_hz, record)
 
     async def supervisor() -> None:
-        done = runtime.control.complete
+        done = runtime.control.complete if not follow else asyncio.Event()
         try:
             await asyncio.wait_for(done.wait(), timeout=limit)
             counters["stop"] = "mission complete"
@@ -98,6 +118,9 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         "thrusters": dict(runtime.thrusters.counters),
     }
     counters["sim_thruster_controller"] = backend.counters
+    if runtime.buoy is not None and runtime.tracking is not None:
+        counters["devices"]["buoy"] = dict(runtime.buoy.counters)
+        counters["tracker"] = runtime.tracking.tracker.counters()
 
 
 def command_step_rms(log: TrackLog) -> float:
@@ -129,14 +152,16 @@ def run_scenario(scn: Scenario, progress: ProgressFn | None = None) -> SimResult
         "sim_seconds": round(sim_s, 3),
         "wall_seconds": round(wall, 3),
         "speedup": round(sim_s / wall, 1) if wall > 0 else math.inf,
-        **line_figures(log, legs),
+        **(line_figures(log, legs) if scn.mission.kind != "follow"
+           else follow_figures(log, counters)),
         "saturation_fraction": counters.get("saturated_ticks", 0) / ticks,
         "command_step_rms": command_step_rms(log),
         "faults": counters.get("faults", []),
         "devices": counters.get("devices", {}),
         "sim_thruster_controller": counters.get("sim_thruster_controller", {}),
+        **({"tracker": counters["tracker"]} if "tracker" in counters else {}),
     }
-    return SimResult(scn, legs, log, report)
+    return SimResult(scn, legs, log, report, counters)
 
 
 class StatusLine:

@@ -17,6 +17,7 @@ from collections import Counter
 from collections.abc import Callable
 
 from drivers.nmea import NmeaError, NmeaFramer
+from drivers.sim.acoustics import AcousticWorld
 from drivers.sim.world import SimWorld
 from drivers.thruster_protocol import parse_pzthr
 from drivers.transports import MemoryTransport, SimPorts
@@ -34,6 +35,7 @@ class SimBackend:
     def __init__(self, world: SimWorld, ports: SimPorts, clock: Clock) -> None:
         self.world = world
         self.clock = clock
+        self.ports = ports
         self.gps_port: MemoryTransport = ports.create("gps")
         self.compass_port: MemoryTransport = ports.create("compass")
         self.thruster_port: MemoryTransport = ports.create("thrusters")
@@ -48,6 +50,19 @@ class SimBackend:
             (STATUS_RATE_HZ,
              lambda t: self.thruster_port.write_nowait(w.thruster_status_bytes(t))),
         ]
+
+    def add_acoustics(self, acoustics: AcousticWorld, rate_hz: float = 20.0) -> None:
+        """Serve the buoy feed (``sim://buoy``): every ``$PZBAE``/``$PZBST``
+        sentence is written at the first device tick after its report time."""
+        port = self.ports.create("buoy")
+        self.buoy_port = port
+
+        def emit(t: float) -> None:
+            data = b"".join(b for _t, b in acoustics.events_until(t))
+            if data:
+                port.write_nowait(data)
+
+        self.add_periodic(rate_hz, emit)
 
     def add_periodic(self, rate_hz: float, fn: Emitter) -> None:
         """Call ``fn(t)`` at ``rate_hz`` after the world has advanced to ``t``

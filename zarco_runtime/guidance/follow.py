@@ -43,9 +43,9 @@ class FollowSettings:
                                   min=0.1, max=1e4)
     new_line_deg: float = spec(20.0, "deg", "course change that starts a new virtual leg "
                                "(resets the cross-track integral)", min=1.0, max=180.0)
-    hold_radius_m: float = spec(5.0, "m", "while holding, drift freely within this radius",
+    hold_radius_m: float = spec(1.5, "m", "while holding, drift freely within this radius",
                                 min=0.5, max=1000.0)
-    hold_speed_mps: float = spec(0.3, "m/s", "speed back to the hold point", min=0.05,
+    hold_speed_mps: float = spec(0.5, "m/s", "speed back to the hold point", min=0.05,
                                  max=2.0)
 
 
@@ -93,9 +93,12 @@ class FollowGuidance:
             geo = follow_geometry(track.x0_m, track.y0_m, track.vx_mps, track.vy_mps, x, y,
                                   t - track.t0)
             if geo is None:
-                reason = "AUV (nearly) still"
+                reason = ""
         if reason or geo is None or track is None:
-            return self._hold(x, y, reason)
+            # AUV still but tracked: hold above it; track lost: hold where we are
+            above = (track.kf_x_m, track.kf_y_m) if (track is not None and geo is None
+                                                    and not reason) else None
+            return self._hold(x, y, reason or "AUV (nearly) still", above)
         self.hold = None
         self.mode = "follow"
         psi = geo.psi_auv_rad
@@ -115,8 +118,11 @@ class FollowGuidance:
         return FollowState("follow", leg, geo.d_m, lead,
                            min(self.cfg.max_speed_mps, geo.v_auv_mps))
 
-    def _hold(self, x: float, y: float, reason: str) -> FollowState:
-        if self.hold is None:
+    def _hold(self, x: float, y: float, reason: str,
+              above: tuple[float, float] | None = None) -> FollowState:
+        if above is not None and all(math.isfinite(v) for v in above):
+            self.hold = above
+        elif self.hold is None:
             self.hold = (x, y)
         self.mode = "hold" if self._psi_leg is not None else "wait"
         hx, hy = self.hold

@@ -18,7 +18,9 @@ from zarco_runtime.geodesy import LocalFrame
 class MissionConfig:
     """``[mission]`` table of a scenario or runtime config."""
 
-    kind: str = spec("lines", "", "mission type", choices=["lines", "idle"])
+    kind: str = spec("lines", "", "mission type: follow straight lines, follow the AUV "
+                     "(its track from the buoy feed), or stay idle",
+                     choices=["lines", "follow", "idle"])
     frame: str = spec("ned", "", "waypoint frame", choices=["ned", "geodetic"])
     waypoints: list[list[float]] = spec(list, "m or deg",
                                         "[[north, east], ...] or [[lat, lon], ...]")

@@ -83,6 +83,9 @@ class TrackerParams:
                                "(several detection-jitter σ)", min=0.0, max=1.0)
     max_range_m: float = spec(3000.0, "m", "largest AUV–beacon range accepted",
                               min=10.0, max=20000.0)
+    closing_margin_m: float = spec(15.0, "m", "once tracking, the AUV's next interrogation "
+                                   "must come within ±2(4σ + this)/c of the period the "
+                                   "predicted range implies", min=0.0, max=10000.0)
     max_speed_mps: float = spec(3.0, "m/s", "largest plausible AUV speed (initialisation)",
                                 min=0.1, max=20.0)
     timing_sigma_s: float = spec(0.0005, "s", "1σ detection-time jitter assumed for the "
@@ -102,10 +105,15 @@ class TrackerParams:
                                      min=0.01, max=20.0)
     gate_chi2: float = spec(16.0, "", "innovation gate on the Mahalanobis distance² of a "
                             "fix (2 dof; 13.8 is 99.9 %)", min=1.0, max=1e6)
-    reacquire_after: int = spec(4, "", "consecutive gated fixes that make the filter "
-                                "re-initialise from the fixes alone", min=1, max=1000)
-    init_window_s: float = spec(20.0, "s", "fixes this recent vote for the mirror choice at "
-                                "initialisation", min=1.0, max=600.0)
+    soft_gate_chi2: float = spec(4.0, "", "innovations with a Mahalanobis distance² above "
+                                 "this (and under gate_chi2) have their measurement "
+                                 "variance scaled by d²/this (robust down-weighting)",
+                                 min=1.0, max=1e6)
+    reacquire_after: int = spec(3, "", "gated fixes within init_window_s that make the "
+                                "tracker test whether the fixes, not the filter, are right "
+                                "(and re-initialise from them if so)", min=1, max=1000)
+    init_window_s: float = spec(30.0, "s", "fixes this recent vote for the mirror choice at "
+                                "(re)initialisation", min=1.0, max=600.0)
     init_agree_m: float = spec(10.0, "m", "candidates from two baselines agree within this "
                                 "distance (plus max_speed × their time apart)",
                                min=0.1, max=1000.0)
@@ -124,6 +132,21 @@ class TrackerParams:
                                    "(mean 1 on a straight line)", min=0.0, max=100.0)
     turn_cusum_threshold: float = spec(8.0, "", "CUSUM level that declares a turn and "
                                        "resets the RLS covariance", min=0.1, max=1e4)
+    turn_vel_sigma_mps: float = spec(0.5, "m/s", "velocity 1σ added to the Kalman filter "
+                                     "when a turn is declared (the RLS restarts from it)",
+                                     min=0.0, max=10.0)
+    turn_pos_sigma_m: float = spec(1.0, "m", "position 1σ added to the Kalman filter when "
+                                   "a turn is declared", min=0.0, max=100.0)
+    maneuver_drift: float = spec(1.0, "", "CUSUM drift on the fixes' normalised "
+                                 "cross-course innovation (σ units)", min=0.0, max=100.0)
+    maneuver_threshold: float = spec(3.0, "", "that CUSUM's level declaring a manoeuvre "
+                                     "(a turn)", min=0.1, max=1e4)
+    maneuver_cap: float = spec(4.0, "", "each innovation is clipped to ± this (σ) in that "
+                                "CUSUM, so one outlier alone never declares a turn",
+                               min=0.1, max=1e4)
+    maneuver_restarts_line: bool = spec(False, "", "a manoeuvre declared by the filter "
+                                        "also restarts the RLS line (otherwise only the "
+                                        "RLS residual CUSUM does)")
     turn_holdoff_s: float = spec(4.0, "s", "no second turn declaration this soon after one",
                                  min=0.0, max=600.0)
     turning_flag_s: float = spec(15.0, "s", "TURNING flag stays set this long after a reset",
@@ -134,6 +157,10 @@ class TrackerParams:
                                min=0.1, max=3600.0)
     lost_sigma_m: float = spec(30.0, "m", "predicted position 1σ above this: LOST",
                                min=0.1, max=1e5)
+    clock_tol_s: float = spec(2.0, "s", "an event whose runtime-minus-UTC time differs "
+                              "from the running estimate by more than this is refused "
+                              "(`clock`), unless 5 in a row agree (the clock jumped)",
+                              min=0.01, max=3600.0)
     feed_latency_s: float = spec(0.0, "s", "smallest delay from detection at the buoy to "
                                  "reception by the runtime (maps the acoustic UTC clock "
                                  "onto the runtime clock)", min=0.0, max=60.0)
