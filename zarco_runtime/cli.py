@@ -18,8 +18,32 @@ def _fmt(v: Any, unit: str = "m") -> str:
     return f"{v:.3f} {unit}" if isinstance(v, (int, float)) else str(v)
 
 
+def follow_summary(report: dict[str, Any]) -> str:
+    """One screen of a follow-the-AUV run."""
+    lines = [
+        f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
+        f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "
+        f"= {report['speedup']:.0f}× real time",
+        f"passive fixes: {report['fixes']}, median interval {report['fix_interval_s']:.2f} s, "
+        f"error RMS {_fmt(report['fix_error_rms_m'])}; track error RMS "
+        f"{_fmt(report['track_error_rms_m'])}",
+        f"AUV course error RMS (straight legs) {report['course_error_rms_deg']:.2f}°",
+        f"ASV–AUV distance: median {_fmt(report['distance_median_m'])}  "
+        f"p95 {_fmt(report['distance_p95_m'])}  max {_fmt(report['distance_max_m'])}",
+        f"track lost {report['track_lost_events']} times",
+        "",
+        " turn at   detect   recovery   max distance",
+    ]
+    for tr in report["turns"]:
+        lines.append(f" {tr['t_s']:7.1f}  {tr['detect_s']:6.1f} s  {tr['recovery_s']:6.1f} s  "
+                     f"{tr['distance_max_m']:7.2f} m")
+    return "\n".join(lines)
+
+
 def summary(report: dict[str, Any]) -> str:
     """One screen of headline figures."""
+    if "xtrack_rms_m" not in report:
+        return follow_summary(report)
     lines = [
         f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
         f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "
@@ -59,12 +83,17 @@ def cmd_sim(args: argparse.Namespace) -> int:
         Path(args.report).parent.mkdir(parents=True, exist_ok=True)
         Path(args.report).write_text(json.dumps(res.report, indent=2) + "\n")
     if args.plot:
-        from zarco_runtime.plot import plot_lines
+        from zarco_runtime.plot import plot_follow, plot_lines
 
         Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
-        plot_lines(args.plot, res.log, res.legs,
-                   f"{scn.scenario.name}: seed {scn.scenario.seed}, "
-                   f"RMS {res.report['xtrack_rms_m']:.3f} m")
+        if scn.mission.kind == "follow":
+            plot_follow(args.plot, res.log, res.extra,
+                        f"{scn.scenario.name}: seed {scn.scenario.seed}, distance median "
+                        f"{res.report['distance_median_m']:.2f} m")
+        else:
+            plot_lines(args.plot, res.log, res.legs,
+                       f"{scn.scenario.name}: seed {scn.scenario.seed}, "
+                       f"RMS {res.report['xtrack_rms_m']:.3f} m")
     print(summary(res.report))
     if args.report:
         print(f"\nreport: {args.report}")

@@ -5,7 +5,8 @@
 * ``track_error_rms_m``: the tracker's Kalman filter vs truth;
 * ``course_error_rms_deg``: the RLS course vs the true course, on straight legs
   from 30 s after each turn;
-* ``turns``: per AUV turn, ``detect_s`` (from the start of the turn until the
+* ``turns``: per AUV turn (two turns less than a minute apart, such as a
+  lawnmower's U-turn, count as one), ``detect_s`` (from the start of the turn until the
   course error stays under 10°) and ``recovery_s`` (until the ASV–AUV
   horizontal distance stays ≤ 3 m for 10 s);
 * ``distance_median_m``, ``distance_p95_m`` on straight legs from 60 s after
@@ -28,13 +29,16 @@ DISTANCE_SETTLE_S = 60.0
 DETECT_DEG = 10.0
 RECOVER_M = 3.0
 RECOVER_HOLD_S = 10.0
+MERGE_S = 60.0
 
 
-def _windows(starts: list[float], end: float, settle: float) -> list[tuple[float, float]]:
-    """Straight-leg windows: from ``settle`` after each start to the next start."""
+def _windows(starts: list[float], stops: list[float], end: float,
+             settle: float) -> list[tuple[float, float]]:
+    """Straight-leg windows: from ``settle`` after each start (the end of a
+    manoeuvre) to the next stop (the start of the next one)."""
     out = []
     for i, s in enumerate(starts):
-        e = starts[i + 1] if i + 1 < len(starts) else end
+        e = stops[i] if i < len(stops) else end
         if s + settle < e:
             out.append((s + settle, e))
     return out
@@ -50,9 +54,21 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
     msgs = counters.get("auv_msgs", [])
     auv_log = counters.get("auv_log", [])
     t_end = log.t[-1] if log.t else 0.0
-    turns = [t for t in auv.turn_times() if t < t_end]
+    # turns closer together than MERGE_S (a lawnmower's two 90° turns at the end
+    # of a leg) count as one manoeuvre
+    turns: list[float] = []
+    turn_ends: list[float] = []
+    for tt_ in auv.turn_times():
+        if tt_ >= t_end:
+            continue
+        if turns and tt_ - turn_ends[-1] <= MERGE_S:
+            turn_ends[-1] = tt_
+        else:
+            turns.append(tt_)
+            turn_ends.append(tt_)
     move_start = float(auv.params.start_delay_s)
-    starts = [move_start, *turns]
+    # straight legs start after the last turn of each manoeuvre
+    starts = [move_start, *turn_ends]
 
     fixes = [m for m in msgs if isinstance(m, AuvFix) and m.accepted and not m.range_only]
     tracks = [m for m in msgs if isinstance(m, AuvTrack)]
@@ -74,14 +90,14 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
             course_t.append(tr.t)
             course_err.append(abs(math.degrees(math.remainder(tr.psi_auv_rad - at.psi_rad,
                                                              math.tau))))
-    cwins = _windows(starts, t_end, COURSE_SETTLE_S)
+    cwins = _windows(starts, turns, t_end, COURSE_SETTLE_S)
     c_sel = [e for t, e in zip(course_t, course_err, strict=True) if _inside(t, cwins)]
 
     t = np.asarray(log.t)
     dist = np.array([math.hypot(x - a[1], y - a[2])
                      for x, y, a in zip(log.x, log.y, auv_log, strict=False)])
     t = t[: dist.size]
-    dwins = _windows(starts, t_end, DISTANCE_SETTLE_S)
+    dwins = _windows(starts, turns, t_end, DISTANCE_SETTLE_S)
     moving = np.array([math.hypot(a[1] - b[1], a[2] - b[2]) > 0.05
                        for a, b in zip(auv_log[1:], auv_log[:-1], strict=True)] + [False])
     moving = moving[: dist.size]

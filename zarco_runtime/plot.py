@@ -50,3 +50,67 @@ def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str) -> 
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str) -> None:
+    """Tracks, the AUV's estimated velocity and course (paper Figs. 7, 8) and the
+    ASV–AUV distance (Fig. 9)."""
+    import math
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from zarco_runtime.tracking.messages import AuvFix, AuvTrack, TrackFlags
+
+    auv = extra.get("auv_log", [])
+    msgs = extra.get("auv_msgs", [])
+    tracks = [m for m in msgs if isinstance(m, AuvTrack) and not m.lost
+              and m.flags & TrackFlags.LINE_VALID]
+    fixes = [m for m in msgs if isinstance(m, AuvFix) and m.accepted and not m.range_only]
+    fig, axs = plt.subplots(2, 2, figsize=(13, 9))
+    ax = axs[0][0]
+    ax.plot([a[2] for a in auv], [a[1] for a in auv], "r-", lw=1.5, label="AUV (truth)")
+    ax.plot(log.y, log.x, "b-", lw=1.0, label="ASV (truth)")
+    ax.plot([f.y_m for f in fixes], [f.x_m for f in fixes], "k.", ms=2, alpha=0.4,
+            label="passive fixes")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("tracks")
+    tt = [m.t for m in tracks]
+    ax = axs[0][1]
+    ax.plot(tt, [m.vx_mps for m in tracks], "b-", label="v_x (north)")
+    ax.plot(tt, [m.vy_mps for m in tracks], "r-", label="v_y (east)")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("m/s")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("estimated AUV velocity (cf. paper Fig. 7)")
+    ax = axs[1][0]
+    # course in [0, 360): no wrap at the usual north/south survey courses
+    ax.plot(tt, [math.degrees(m.psi_auv_rad) % 360.0 for m in tracks], "b.", ms=2,
+            label="estimated")
+    ax.plot([a[0] for a in auv], [math.degrees(a[3]) % 360.0 for a in auv],
+            "k--", lw=0.8, label="true")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("course (deg)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("AUV course (cf. paper Fig. 8)")
+    ax = axs[1][1]
+    n = min(len(log.t), len(auv))
+    ax.plot(log.t[:n], [math.hypot(log.x[i] - auv[i][1], log.y[i] - auv[i][2])
+                        for i in range(n)], "b-")
+    ax.axhline(3.0, color="k", lw=0.6, ls=":")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("distance (m)")
+    ax.grid(True, alpha=0.3)
+    ax.set_title("horizontal distance ASV–AUV (cf. paper Fig. 9)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

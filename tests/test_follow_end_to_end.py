@@ -1,0 +1,51 @@
+"""End to end: following the AUV through a 90° turn from the buoy feed alone."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from zarco_runtime.scenario import load_scenario
+from zarco_runtime.simulation import run_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+TURN = ROOT / "config" / "scenarios" / "follow_turn.toml"
+
+
+@pytest.fixture(scope="module")
+def report() -> dict:
+    return run_scenario(load_scenario(TURN, seed=5)).report
+
+
+def test_follow_turn_distance_figures(report: dict) -> None:
+    r = report
+    assert 1.5 <= r["fix_interval_s"] <= 2.5  # the paper: a new fix every 2 s or more
+    assert r["fixes"] > 150
+    assert r["course_error_rms_deg"] <= 3.0
+    assert r["distance_median_m"] <= 2.0
+    assert r["distance_p95_m"] <= 4.0
+    assert r["distance_max_m"] <= 12.0
+    assert len(r["turns"]) == 1
+    turn = r["turns"][0]
+    assert math.isfinite(turn["recovery_s"]) and turn["recovery_s"] <= 45.0
+    assert r["track_lost_events"] == 0
+
+
+def test_tracker_counted_what_it_dropped(report: dict) -> None:
+    dev = report["devices"]["buoy"]
+    assert dev["sentences_ok"] > 500 and dev.get("checksum", 0) == 0
+    # with 10 % missed and 2 % false detections the tracker drops events with reasons
+    dropped = report["tracker"]
+    assert sum(dropped.values()) > 0
+    assert dropped.get("internal", 0) == 0
+
+
+def test_a_bad_follow_scenario_is_refused(tmp_path: Path) -> None:
+    from zarco_runtime.config import ConfigError
+
+    p = tmp_path / "f.toml"
+    p.write_text("[mission]\nkind = \"follow\"\n")
+    with pytest.raises(ConfigError, match="needs the \\[auv\\] and \\[lbl\\]"):
+        load_scenario(p)
