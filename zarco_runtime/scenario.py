@@ -21,7 +21,6 @@ from typing import Any
 from drivers.sim.acoustics import LblParams
 from drivers.sim.auv import AuvParams
 from drivers.sim.params import WorldParams
-
 from zarco_runtime.config import ConfigError, apply_overrides, build, load_toml, spec
 from zarco_runtime.guidance.mission import MissionConfig
 from zarco_runtime.settings import RuntimeConfig

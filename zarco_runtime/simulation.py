@@ -24,12 +24,12 @@ from drivers.sim.world import SimWorld
 from drivers.transports import SimPorts
 from zarco_runtime.bus import Bus
 from zarco_runtime.clock import Clock, run_virtual
+from zarco_runtime.follow_report import follow_figures
 from zarco_runtime.geodesy import LocalFrame
 from zarco_runtime.guidance.mission import Leg, build_legs
 from zarco_runtime.messages import Fault, GuidanceStatus, ThrusterCommand
 from zarco_runtime.runtime import Runtime
 from zarco_runtime.scenario import Scenario
-from zarco_runtime.follow_report import follow_figures
 from zarco_runtime.sim_report import TrackLog, line_figures
 from zarco_runtime.tracking.messages import AuvFix, AuvTrack
 
