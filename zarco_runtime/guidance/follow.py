@@ -30,10 +30,10 @@ VIRTUAL_HALF_LENGTH_M = 10_000.0
 class FollowSettings:
     """``[follow]`` table of the runtime configuration."""
 
-    k_s: float = spec(6.0, "N/m", "surge force per metre the AUV is ahead along its line",
+    k_s: float = spec(20.0, "N/m", "surge force per metre the AUV is ahead along its line",
                       min=0.0, max=1e4)
-    k_i: float = spec(0.3, "N/(m s)", "integral of the along-track lead", min=0.0, max=1e4)
-    along_clamp_m: float = spec(15.0, "m", "along-track lead used at most by the surge law",
+    k_i: float = spec(1.0, "N/(m s)", "integral of the along-track lead", min=0.0, max=1e4)
+    along_clamp_m: float = spec(8.0, "m", "along-track lead used at most by the surge law",
                                 min=0.1, max=1e4)
     max_speed_mps: float = spec(1.5, "m/s", "fastest speed reference while catching up",
                                 min=0.1, max=3.0)
