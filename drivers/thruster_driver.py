@@ -114,5 +114,8 @@ class ThrusterDriver(DeviceLink):
                 self.set_state(HealthState.DISCONNECTED, str(exc))
             finally:
                 self.tr = None
+                with contextlib.suppress(Exception):  # last words before the port closes
+                    tr.write_nowait(ZERO)
+                    self.counters["commands_sent"] += 1
                 with contextlib.suppress(Exception):
                     await tr.close()

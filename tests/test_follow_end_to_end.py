@@ -33,6 +33,13 @@ def test_follow_turn_distance_figures(report: dict) -> None:
     assert r["track_lost_events"] == 0
 
 
+def test_runtime_stopped_mid_mission_leaves_zero_thrust(report: dict) -> None:
+    # the run ends at its time limit with the boat under way: the thruster
+    # driver's last words on the port must be zero thrust
+    assert report["stop"].startswith("time limit")
+    assert tuple(report["last_thruster_command"]) == (0.0, 0.0)
+
+
 def test_tracker_counted_what_it_dropped(report: dict) -> None:
     dev = report["devices"]["buoy"]
     assert dev["sentences_ok"] > 500 and dev.get("checksum", 0) == 0

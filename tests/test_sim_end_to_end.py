@@ -52,6 +52,9 @@ def test_every_byte_went_through_the_drivers(rect_1ms: dict) -> None:
     # $PZTHR at the 20 Hz control rate, all accepted by the thruster controller
     assert rect_1ms["sim_thruster_controller"]["commands"] == pytest.approx(20 * secs, rel=0.02)
     assert dev["thrusters"]["status_ok"] > 4 * secs
+    # the runtime's last words on the thruster port were zero thrust
+    assert rect_1ms["last_thruster_command"] == [0.0, 0.0] or \
+        rect_1ms["last_thruster_command"] == (0.0, 0.0)
 
 
 def test_same_seed_same_report() -> None:

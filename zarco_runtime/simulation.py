@@ -118,6 +118,8 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         "thrusters": dict(runtime.thrusters.counters),
     }
     counters["sim_thruster_controller"] = backend.counters
+    ctl = world.thrusters
+    counters["last_command"] = (ctl.u1, ctl.u2)
     if runtime.buoy is not None and runtime.tracking is not None:
         counters["devices"]["buoy"] = dict(runtime.buoy.counters)
         counters["tracker"] = runtime.tracking.tracker.counters()
@@ -159,6 +161,7 @@ def run_scenario(scn: Scenario, progress: ProgressFn | None = None) -> SimResult
         "faults": counters.get("faults", []),
         "devices": counters.get("devices", {}),
         "sim_thruster_controller": counters.get("sim_thruster_controller", {}),
+        "last_thruster_command": counters.get("last_command"),
         **({"tracker": counters["tracker"]} if "tracker" in counters else {}),
     }
     return SimResult(scn, legs, log, report, counters)
