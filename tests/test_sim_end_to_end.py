@@ -90,3 +90,11 @@ def test_cli_writes_report_and_plot(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     out = capsys.readouterr().out
     assert "cross-track" in out and "RMS" in out
+
+
+def test_the_ekf_drives_the_same_runtime() -> None:
+    r = run_scenario(load_scenario(RECT, ["mission.speed_mps=1.0",
+                                          "runtime.navigation.estimator=ekf"], seed=7)).report
+    assert r["stop"] == "mission complete"
+    assert r["xtrack_rms_m"] <= 0.06
+    assert r["xtrack_p95_m"] <= 0.12

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from zarco_runtime.config import spec
 from zarco_runtime.guidance.follow import FollowSettings
+from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.tracking.params import TrackerParams
 
 # Bollard-pull calibration of one Zarco thruster (command → thrust, N), sampled
@@ -118,8 +119,13 @@ class Thrusters:
 
 @dataclass(slots=True)
 class Navigation:
-    """First navigation estimate: per-axis constant-velocity filter on GPS, and a
-    complementary filter of compass heading with the gyro rate."""
+    """Navigation: the EKF (``navigation/ekf.py``, settings in ``[ekf]``) or the
+    first estimate (per-axis constant-velocity filter on GPS, and a complementary
+    filter of compass heading with the gyro rate; the settings below)."""
+
+    estimator: str = spec("simple", "", "which estimator feeds the controller (the EKF is "
+                          "complete but costs ~40 % of the simulation speed; see issue 5)",
+                          choices=["ekf", "simple"])
 
     accel_psd: float = spec(0.02, "m²/s³", "acceleration noise density of the "
                             "constant-velocity position filter", min=1e-6, max=100.0)
@@ -197,4 +203,5 @@ class RuntimeConfig:
     guidance: Guidance = spec(Guidance)
     follow: FollowSettings = spec(FollowSettings)
     tracker: TrackerParams = spec(TrackerParams)
+    ekf: EkfSettings = spec(EkfSettings)
     failsafe: Failsafe = spec(Failsafe)

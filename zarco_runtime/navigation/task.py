@@ -10,7 +10,8 @@ from __future__ import annotations
 from zarco_runtime.bus import Bus
 from zarco_runtime.clock import Clock
 from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import GpsFix, GpsVelocity, Heading, RateOfTurn
+from zarco_runtime.messages import GpsErrorStats, GpsFix, GpsVelocity, Heading, RateOfTurn
+from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.simple import SimpleNavigator
 from zarco_runtime.settings import RuntimeConfig
 
@@ -20,8 +21,14 @@ class Navigation:
 
     def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock) -> None:
         o = cfg.origin
-        self.nav = SimpleNavigator(cfg.navigation, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m),
-                                   cfg.devices.compass.variation_deg)
+        frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+        var = cfg.devices.compass.variation_deg
+        self.nav: SimpleNavigator | EkfNavigator
+        if cfg.navigation.estimator == "ekf":
+            self.nav = EkfNavigator(cfg.ekf, frame, var)
+            bus.listen(GpsErrorStats, self.nav.on_gst)
+        else:
+            self.nav = SimpleNavigator(cfg.navigation, frame, var)
         self.bus = bus
         self.clock = clock
         bus.listen(GpsFix, self._on_fix)
