@@ -29,9 +29,11 @@ from zarco_runtime.settings import Device
 
 ParseFn = Callable[[str, float], list[Any]]
 
-#: reconnect backoff bounds (s); the cap is the issue's 1 s.
+#: reconnect backoff bounds (s): the jittered wait is 0.5–1 × the backoff, so
+#: never more than BACKOFF_MAX_S (under the issue's 1 s cap, with room for the
+#: first sentence: a replugged device is read again within 1 s)
 BACKOFF_MIN_S = 0.05
-BACKOFF_MAX_S = 1.0
+BACKOFF_MAX_S = 0.8
 #: health is published at least this often (s)
 HEALTH_PERIOD_S = 1.0
 
@@ -90,6 +92,26 @@ class DeviceLink:
         self.bus.publish(DeviceHealth(self.clock.now(), self.name, self.state, self.reason,
                                       dict(self.counters)))
 
+    async def read_or_reopen(self, tr: Transport) -> bytes:
+        """Next chunk; a port silent for ``cfg.reopen_s`` is treated as failed.
+
+        (``asyncio.timeout``, not ``wait_for``: on Python 3.11 ``wait_for`` can
+        swallow a cancellation that races with a completed read, and a
+        runtime told to stop would keep reading.)
+        """
+        limit = self.cfg.reopen_s
+        if limit <= 0.0:
+            chunk = await tr.read()
+        else:
+            try:
+                async with asyncio.timeout(limit):
+                    chunk = await tr.read()
+            except TimeoutError:
+                raise TransportError(f"no bytes for {limit:g} s") from None
+        if not chunk:
+            raise TransportError("port closed")
+        return chunk
+
     async def open(self) -> Transport:
         """Open the port, retrying with jittered backoff (never raises but on cancel)."""
         backoff = BACKOFF_MIN_S
@@ -101,7 +123,7 @@ class DeviceLink:
             except TransportError as exc:
                 self.counters["open_failures"] += 1
                 self.set_state(HealthState.DISCONNECTED, str(exc))
-            await asyncio.sleep(backoff * (0.5 + self._rng.random()))
+            await asyncio.sleep(backoff * (0.5 + 0.5 * self._rng.random()))
             backoff = min(BACKOFF_MAX_S, backoff * 2.0)
 
     async def watch(self) -> None:
@@ -157,9 +179,7 @@ class NmeaDevice(DeviceLink):
             base = self.counters["bytes_discarded"]  # counters span reconnections
             try:
                 while True:
-                    chunk = await tr.read()
-                    if not chunk:
-                        raise TransportError("port closed")
+                    chunk = await self.read_or_reopen(tr)
                     self.counters["bytes"] += len(chunk)
                     t = now()
                     for line in framer.feed(chunk):

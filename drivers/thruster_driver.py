@@ -94,9 +94,7 @@ class ThrusterDriver(DeviceLink):
             framer = NmeaFramer()
             try:
                 while True:
-                    chunk = await tr.read()
-                    if not chunk:
-                        raise TransportError("port closed")
+                    chunk = await self.read_or_reopen(tr)
                     t = now()
                     for line in framer.feed(chunk):
                         try:

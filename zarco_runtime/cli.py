@@ -102,6 +102,41 @@ def cmd_sim(args: argparse.Namespace) -> int:
     return 0
 
 
+def _status_file(path: str, runtime: Any) -> Any:
+    """``--status FILE``: one JSON line per device health transition (with its
+    counters) while running, and a ``"final": true`` line with every device's
+    counters on exit.  Returns the function that writes the final line."""
+    import time
+
+    from zarco_runtime.messages import DeviceHealth
+
+    fh = Path(path).open("a", buffering=1)  # noqa: SIM115 (closed by final())
+    last: dict[str, tuple[str, str]] = {}
+
+    def on_health(m: DeviceHealth) -> None:
+        if last.get(m.device) != (m.state.value, m.reason):
+            last[m.device] = (m.state.value, m.reason)
+            fh.write(json.dumps({"wall": round(time.time(), 3), "t": round(m.t, 3),
+                                 "device": m.device, "state": m.state.value,
+                                 "reason": m.reason, "counters": m.counters}) + "\n")
+
+    runtime.bus.listen(DeviceHealth, on_health)
+
+    def final() -> None:
+        devs = {d.name: {"state": d.state.value, "reason": d.reason,
+                         "counters": dict(d.counters)}
+                for d in (runtime.gps, runtime.compass, runtime.thrusters)}
+        ctl = runtime.control
+        fh.write(json.dumps({"final": True, "wall": round(time.time(), 3), "devices": devs,
+                             "control": {"ticks": ctl.ticks, "faults": ctl.faults,
+                                         "saturated_ticks": ctl.saturated_ticks,
+                                         "period_jitter_hist": getattr(
+                                             ctl, "period_jitter_hist", None)}}) + "\n")
+        fh.close()
+
+    return final
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from zarco_runtime.geodesy import LocalFrame
     from zarco_runtime.guidance.mission import build_legs
@@ -112,6 +147,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     o = cfg.origin
     legs = build_legs(mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)) if mission else []
     runtime = Runtime(cfg, legs)
+    final = _status_file(args.status, runtime) if args.status else None
 
     async def main() -> None:
         task = asyncio.current_task()
@@ -123,6 +159,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             await runtime.run()
         except asyncio.CancelledError:
             logging.getLogger("zarco").info("stopping: signal received")
+        finally:
+            if final is not None:
+                final()
 
     asyncio.run(main())
     return 0
@@ -146,6 +185,8 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run on the vessel (real devices)")
     r.add_argument("--config", required=True, help="runtime TOML (config/zarco.toml)")
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    r.add_argument("--status", metavar="FILE.jsonl", help="append device health transitions "
+                   "(JSON lines, with counters) here, and every device's counters on exit")
     r.set_defaults(func=cmd_run)
 
     from hil.cli import register

@@ -20,6 +20,7 @@ from typing import Any
 
 from drivers.sim.acoustics import LblParams
 from drivers.sim.auv import AuvParams
+from drivers.sim.faults import FaultSpec
 from drivers.sim.params import WorldParams
 from zarco_runtime.config import ConfigError, apply_overrides, build, load_toml, spec
 from zarco_runtime.guidance.mission import MissionConfig
@@ -44,6 +45,7 @@ class Scenario:
     auv: AuvParams | None = spec(None, "", "the simulated AUV (follow scenarios)")
     lbl: LblParams | None = spec(None, "", "the simulated LBL network and buoy (follow "
                                  "scenarios)")
+    faults: list[FaultSpec] = spec(list, "", "fault schedule ([[faults]]): zarco hil only")
 
 
 def load_scenario(path: str | Path, overrides: list[str] | None = None,

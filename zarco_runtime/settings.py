@@ -51,6 +51,8 @@ class Device:
     baudrate: int = spec(115200, "bit/s", "serial speed", min=1200, max=4_000_000)
     enabled: bool = spec(True, "", "read this device")
     stale_s: float = spec(1.0, "s", "no valid sentence for this long → stale", min=0.05, max=60.0)
+    reopen_s: float = spec(3.0, "s", "no bytes at all for this long → close and reopen the "
+                           "port (0: never)", min=0.0, max=600.0)
     variation_deg: float | None = spec(
         None, "deg", "magnetic variation (east +) when the sentences carry none",
         min=-90.0, max=90.0,
@@ -188,6 +190,8 @@ class Guidance:
 class Failsafe:
     nav_invalid_s: float = spec(1.0, "s", "position/heading invalid this long → zero thrust",
                                 min=0.0, max=60.0)
+    thruster_silent_s: float = spec(1.0, "s", "the thruster controller's $PZTHS stopped for "
+                                    "this long → zero thrust (0: off)", min=0.0, max=60.0)
 
 
 @dataclass(slots=True)

@@ -30,11 +30,16 @@ from zarco_runtime.messages import (
     GuidanceStatus,
     NavState,
     ThrusterCommand,
+    ThrusterStatus,
 )
 from zarco_runtime.settings import RuntimeConfig
 from zarco_runtime.tracking.messages import AuvTrack
 
 log = logging.getLogger("zarco.control")
+#: histogram of the control period jitter |period − dt|: JITTER_BINS bins of
+#: JITTER_BIN_S, the last one for everything beyond (``zarco run --status``, HIL)
+JITTER_BIN_S = 5e-5
+JITTER_BINS = 400
 
 
 class ControlTask:
@@ -48,6 +53,8 @@ class ControlTask:
         self.port = ThrusterMap.from_table(th.port.u, th.port.f_n)
         self.stbd = ThrusterMap.from_table(th.starboard.u, th.starboard.f_n)
         self.nav = bus.latest(NavState)
+        self.period_jitter_hist = [0] * (JITTER_BINS + 1)
+        self.status = bus.latest(ThrusterStatus)
         self.guidance = LineGuidance(
             legs, cfg.guidance.switching, math.radians(cfg.guidance.turn_rate_dps)
         ) if legs else None
@@ -75,6 +82,14 @@ class ControlTask:
         bus = self.bus
         nav = self.nav.value
         self.ticks += 1
+        # the thruster controller answered once and has stopped: it may not be
+        # obeying (or its port is gone); command zero until it answers again
+        silent = self.cfg.failsafe.thruster_silent_s
+        st = self.status.value
+        if silent > 0.0 and st is not None and t - st.t > silent:
+            self._raise_fault(t, f"failsafe: no status from the thruster controller for "
+                                 f"{silent:g} s; zero thrust")
+            return ZERO
         if nav is None or (self.guidance is None and self.follow is None):
             return ZERO
         # extrapolate the estimate to now
@@ -149,10 +164,15 @@ class ControlTask:
         clock = self.clock
         t0 = clock.now()
         k = 0
+        last: float | None = None
+        hist = self.period_jitter_hist
         while True:
             k += 1
             await clock.sleep_until(t0 + k * self.dt)
             t = clock.now()
+            if last is not None:
+                hist[min(JITTER_BINS, int(abs(t - last - self.dt) / JITTER_BIN_S))] += 1
+            last = t
             try:
                 alloc = self.tick(t)
             except Exception as exc:  # never let a control bug leave thrust on

@@ -1,0 +1,115 @@
+"""HIL in CI: ``zarco run`` in its own process against the simulator behind real
+pseudo-terminals, in real time (one 35 m line, about 40 s).
+
+Faults (hil/scenarios/line_faults.toml): the GPS is unplugged at 14 s for 1 s
+(its pty vanishes and comes back at the same link path), a burst of binary
+noise hits the compass line at 20 s, GPS sentences arrive split into small
+writes at 24 s, half the compass checksums are wrong at 28 s.  The runtime's
+side is read from its own log (health transitions, dropped sentences,
+failsafes) and its ``--status`` file (counters); the boat's from the
+simulator's truth.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hil.run import HilResult, run_hil
+from hil.scenario import load_hil_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = ROOT / "hil" / "scenarios" / "line_faults.toml"
+
+
+@pytest.fixture(scope="module")
+def hil(tmp_path_factory: pytest.TempPathFactory) -> HilResult:
+    try:
+        a, b = os.openpty()
+    except OSError as exc:  # pragma: no cover - a container without /dev/pts
+        pytest.skip(f"no pseudo-terminals here: {exc}")
+    os.close(a)
+    os.close(b)
+    scn, faults = load_hil_scenario(SCENARIO)
+    return run_hil(scn, faults, tmp_path_factory.mktemp("hil"), duration_s=60.0)
+
+
+def health(report: dict[str, Any], device: str) -> list[dict[str, Any]]:
+    return [h for h in report["hil"]["health"] if h["device"] == device]
+
+
+def test_the_runtime_ran_the_mission_and_never_exited(hil: HilResult) -> None:
+    r = hil.report
+    rt = r["hil"]["runtime"]
+    assert r["stop"] == "mission complete", (r["stop"], rt)
+    assert not rt["exited_before_the_end"] and rt["exit_code"] == 0, rt
+    assert rt["errors"] == []
+    # it was reading serial ports at the links, not simulated ones
+    cfg = (hil.run_dir / "zarco.toml").read_text()
+    for dev, link in r["hil"]["links"].items():
+        assert f'url = "{link}"' in cfg and link.endswith(f"/dev/{dev}")
+    assert r["sim_thruster_controller"]["commands"] > 15 * r["sim_seconds"]
+
+
+def test_gps_unplug_and_replug_are_seen_and_survived(hil: HilResult) -> None:
+    r = hil.report
+    gps = health(r, "gps")
+    states = [h["state"] for h in gps]
+    i = states.index("disconnected")
+    assert states[0] == "stale" and "ok" in states[:i]  # opened, then read
+    assert "ok" in states[i:]  # read again after the replug
+    # the runtime saw the unplug when it happened (t is from the start of the run)
+    assert gps[i]["t"] == pytest.approx(14.0, abs=0.3)
+    (rp,) = r["hil"]["replugs"]
+    assert rp["device"] == "gps" and rp["t"] == pytest.approx(15.0, abs=0.1)
+    # reopened and read again soon after the port came back (issue: within 1 s; the
+    # driver waits at most 0.8 s between attempts, 0.5 s with hil/PATCHES.md 9; some
+    # slack for a loaded CI machine)
+    assert rp["opened_after_s"] is not None and rp["opened_after_s"] < 1.1
+    assert rp["read_after_s"] is not None and rp["read_after_s"] < 1.2
+    # the other devices never noticed
+    assert [h["state"] for h in health(r, "thrusters")] == ["stale", "ok"]
+
+
+def test_noise_and_bad_checksums_are_refused_not_fatal(hil: HilResult) -> None:
+    r = hil.report
+    comp = r["devices"]["compass"]
+    # noise and bad checksums never made the compass stale or disconnected
+    assert comp["states"] == ["stale", "ok"], comp
+    dropped = comp.get("dropped_log_lines", {})
+    assert dropped.get("checksum", 0) >= 1, dropped  # the bad-checksum fault
+    assert set(dropped) - {"checksum"}, dropped  # noise frames: framing / no_checksum ...
+    c = comp["counters"]  # the runtime's own counters (zarco run --status)
+    assert c["bytes_discarded"] > 1000 and c.get("checksum", 0) > 10, c
+
+
+def test_the_boat_stays_on_its_line(hil: HilResult) -> None:
+    r = hil.report
+    (leg,) = r["legs"]
+    assert leg["samples"] > 150  # 20 m of settled line at 10 Hz
+    assert r["xtrack_rms_m"] < 0.12, r["xtrack_rms_m"]
+    assert r["xtrack_max_m"] < 0.5, r["xtrack_max_m"]
+    assert 30.0 < r["sim_seconds"] < 50.0
+
+
+def test_timing_at_the_ports(hil: HilResult) -> None:
+    t = hil.report["hil"]["timing"]
+    assert t["period_mean_ms"] == pytest.approx(50.0, abs=1.0)
+    assert t["jitter_p99_ms"] < 10.0, t  # CI machines are busy; the bench reports it
+    assert t["latency_samples"] > 50 and t["latency_p99_ms"] < 60.0, t
+    assert t["runtime_jitter_p99_ms"] < 10.0, t  # the control loop's own (zarco run --status)
+    h = hil.report["hil"]
+    assert h["cpu_percent"] is not None and h["cpu_percent"] < 50.0
+    assert h["rss_end_mb"] < 500.0
+
+
+def test_stopping_the_runtime_stops_the_boat(hil: HilResult) -> None:
+    """SIGTERM: the last command on the wire is zero thrust, and the runtime's own
+    counters and control figures were written on the way out (``--status``)."""
+    assert hil.report["hil"]["zero_thrust_on_exit"], hil.report["hil"]["last_command"]
+    gps = hil.report["devices"]["gps"]
+    assert gps["counters"]["reconnects"] >= 1 and gps["counters"]["open_failures"] >= 1
+    assert hil.report["hil"]["timing"]["runtime_periods"] > 600
