@@ -35,11 +35,15 @@ class Clock:
 
     def __init__(self, utc_offset_s: float | None = None) -> None:
         self._utc_offset_s = utc_offset_s
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._time = time.monotonic
 
-    @staticmethod
-    def now() -> float:
+    def now(self) -> float:
         """Runtime time (s): ``loop.time()``; monotonic, or virtual in simulation."""
-        return asyncio.get_running_loop().time()
+        loop = asyncio.get_running_loop()
+        if loop is not self._loop:
+            self._loop, self._time = loop, loop.time
+        return self._time()
 
     def utc(self, t: float | None = None) -> float:
         """UTC seconds since 1970 at runtime time ``t`` (default: now)."""
