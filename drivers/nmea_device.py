@@ -184,6 +184,61 @@ class NmeaDevice(DeviceLink):
         async with asyncio.TaskGroup() as tg:
             tg.create_task(self.watch(), name=f"{self.name}.health")
             tg.create_task(self._read_loop(), name=f"{self.name}.read")
+            if self.cfg.corrections_url:
+                tg.create_task(self._corrections_loop(), name=f"{self.name}.rtcm")
+
+    async def _corrections_loop(self) -> None:
+        """Copy RTCM3 correction bytes from the configured source to this port.
+
+        The bytes are opaque here (the receiver decodes RTCM3); the source is
+        reopened with the same backoff as a device when it fails, and bytes that
+        arrive while the device port is down are counted and dropped (stale
+        corrections are worse than none).
+        """
+        url = self.cfg.corrections_url
+        backoff = BACKOFF_MIN_S
+        while True:
+            try:
+                if url.startswith("file://"):
+                    await self._corrections_from_file(url[len("file://"):])
+                    return
+                src = await open_transport(url, self.cfg.baudrate, self.sim)
+                backoff = BACKOFF_MIN_S
+                try:
+                    while True:
+                        chunk = await src.read()
+                        if not chunk:
+                            raise TransportError("corrections source closed")
+                        self._forward_corrections(chunk)
+                finally:
+                    with contextlib.suppress(Exception):
+                        await src.close()
+            except (TransportError, OSError) as exc:
+                self.counters["corrections_source_errors"] += 1
+                self.rlog.warning("rtcm", f"{self.name}: corrections source {url}: {exc}")
+            await asyncio.sleep(backoff * (0.5 + 0.5 * self._rng.random()))
+            backoff = min(BACKOFF_MAX_S, backoff * 2.0)
+
+    async def _corrections_from_file(self, path: str) -> None:
+        rate = self.cfg.corrections_rate_bps
+        block = max(1, int(rate / 10))
+        with open(path, "rb") as fh:
+            while chunk := fh.read(block):
+                while self._reading is None:  # a recording can wait for the port
+                    await asyncio.sleep(0.05)
+                self._forward_corrections(chunk)
+                await asyncio.sleep(len(chunk) / rate)
+
+    def _forward_corrections(self, chunk: bytes) -> None:
+        tr = self._reading
+        if tr is None:
+            self.counters["corrections_dropped_bytes"] += len(chunk)
+            return
+        try:
+            tr.write_nowait(chunk)
+            self.counters["corrections_bytes"] += len(chunk)
+        except (TransportError, OSError):
+            self.counters["corrections_dropped_bytes"] += len(chunk)
 
     async def _read_loop(self) -> None:
         now = self.clock.now

@@ -54,3 +54,43 @@ def test_gps_driver_reads_a_pty_and_survives_garbage() -> None:
     assert fixes[0].lat_deg is not None and abs(fixes[0].lat_deg - 41.5749659) < 1e-6
     assert counters["checksum"] >= 1 and counters["bytes_discarded"] > 0
     assert any(h.state is HealthState.OK for h in health)
+
+
+def test_rtcm3_corrections_are_written_to_the_gps_port(tmp_path: Path) -> None:
+    """Correction bytes from a file:// source reach the receiver's port, untouched,
+    while the driver keeps reading NMEA from the same port."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    tty.setraw(master)
+    path = os.ttyname(slave)
+    rtcm = bytes([0xD3, 0x00, 0x13]) + bytes(range(19)) + b"\x01\x02\x03"  # an RTCM3 frame
+    src = tmp_path / "corrections.rtcm3"
+    src.write_bytes(rtcm * 20)
+
+    async def main() -> tuple[bytes, dict[str, int]]:
+        bus = Bus()
+        dev = NmeaDevice("gps", Device(url=path, corrections_url=f"file://{src}",
+                                       corrections_rate_bps=5000.0),
+                         bus, Clock(), lambda line, t: parse_gps(line, t, "gps"))
+        task = asyncio.create_task(dev.run(), name="gps")
+        loop = asyncio.get_running_loop()
+        got = b""
+        deadline = loop.time() + 3.0
+        while len(got) < len(rtcm) * 20 and loop.time() < deadline:
+            await asyncio.sleep(0.05)
+            try:
+                got += os.read(master, 65536)
+            except BlockingIOError:
+                pass
+        task.cancel()
+        await asyncio.gather(task, return_exceptions=True)
+        return got, dict(dev.counters)
+
+    os.set_blocking(master, False)
+    try:
+        got, counters = asyncio.run(main())
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert got == rtcm * 20
+    assert counters["corrections_bytes"] == len(rtcm) * 20

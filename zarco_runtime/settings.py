@@ -51,6 +51,11 @@ class Device:
     baudrate: int = spec(115200, "bit/s", "serial speed", min=1200, max=4_000_000)
     enabled: bool = spec(True, "", "read this device")
     stale_s: float = spec(1.0, "s", "no valid sentence for this long → stale", min=0.05, max=60.0)
+    corrections_url: str = spec("", "", "RTCM3 corrections written to this device's port, "
+                                "from a serial port, tcp://HOST:PORT or file://PATH "
+                                "(empty: none; the shore relay comes with the shore link)")
+    corrections_rate_bps: float = spec(4000.0, "B/s", "pace of a file:// corrections "
+                                       "source", min=1.0, max=1e7)
     reopen_s: float = spec(3.0, "s", "no bytes at all for this long → close and reopen the "
                            "port (0: never)", min=0.0, max=600.0)
     variation_deg: float | None = spec(
