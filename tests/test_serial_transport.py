@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import tty
 from pathlib import Path
@@ -78,10 +79,8 @@ def test_rtcm3_corrections_are_written_to_the_gps_port(tmp_path: Path) -> None:
         deadline = loop.time() + 3.0
         while len(got) < len(rtcm) * 20 and loop.time() < deadline:
             await asyncio.sleep(0.05)
-            try:
+            with contextlib.suppress(BlockingIOError):
                 got += os.read(master, 65536)
-            except BlockingIOError:
-                pass
         task.cancel()
         await asyncio.gather(task, return_exceptions=True)
         return got, dict(dev.counters)
