@@ -31,9 +31,9 @@ ParseFn = Callable[[str, float], list[Any]]
 
 #: reconnect backoff bounds (s): the jittered wait is 0.5–1 × the backoff, so
 #: never more than BACKOFF_MAX_S (under the issue's 1 s cap, with room for the
-#: first sentence: a replugged device is read again within 1 s)
+#: first sentence of a 5 Hz device: a replugged device is read again within 1 s)
 BACKOFF_MIN_S = 0.05
-BACKOFF_MAX_S = 0.8
+BACKOFF_MAX_S = 0.5
 #: health is published at least this often (s)
 HEALTH_PERIOD_S = 1.0
 

@@ -112,7 +112,7 @@ def zarco_command() -> list[str]:
 
 
 def run_supports(option: str) -> bool:
-    """Does ``zarco run`` take ``option`` (e.g. ``--status`` of hil/PATCHES.md)?"""
+    """Does ``zarco run`` take ``option`` (``--status``)?"""
     from zarco_runtime.cli import build_parser
 
     p = build_parser()
@@ -184,7 +184,7 @@ def timing_figures(sim: HilSimulator, t_start: float, t_end: float, period_s: fl
     }
 
 
-#: bin width of the runtime's period jitter histogram (control/task.py, PATCHES.md 7)
+#: bin width of the runtime's period jitter histogram (control/task.py JITTER_BIN_S)
 JITTER_BIN_MS = 0.05
 
 
@@ -416,7 +416,7 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
     for key, n in rlog.dropped.items():
         dev, reason = key.split(":", 1)
         devices[dev].setdefault("dropped_log_lines", {})[reason] = n
-    if status_file.exists():  # the runtime's own counters (hil/PATCHES.md, patch 2)
+    if status_file.exists():  # the runtime's own counters (zarco run --status)
         last_status: dict[str, Any] = {}
         for ln in status_file.read_text().splitlines():
             with contextlib.suppress(ValueError):
@@ -426,7 +426,7 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
         for d, rec in last_status.get("devices", {}).items():
             devices.setdefault(d, {}).update(rec)
         hist = last_status.get("control", {}).get("period_jitter_hist")
-        if hist:  # measured inside the runtime (hil/PATCHES.md, patch 7)
+        if hist:  # measured inside the runtime (control/task.py)
             timing.update(hist_figures(hist))
     return {
         "stop": stop,

@@ -90,7 +90,7 @@ def main() -> None:
         "runtime_errors": len(h["runtime"]["errors"]),
         "zero_thrust_on_exit": h["zero_thrust_on_exit"],
         # the control loop's own period jitter when the runtime reports it
-        # (hil/PATCHES.md 2 + 7), else the $PZTHR stream's as read at the pty
+        # (zarco run --status), else the $PZTHR stream's as read at the pty
         "jitter_p99_ms": t.get("runtime_jitter_p99_ms", t["jitter_p99_ms"]),
         "jitter_source": "runtime" if "runtime_jitter_p99_ms" in t else "ports",
         "jitter_p99_wire_ms": t["jitter_p99_ms"],
