@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from zarco_runtime.config import spec
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.tracking.follow import follow_geometry
-from zarco_runtime.tracking.messages import AuvTrack
+from zarco_runtime.tracking.messages import AuvTrack, TrackFlags
 
 #: half-length of the virtual leg laid along the AUV's line (m)
 VIRTUAL_HALF_LENGTH_M = 10_000.0
@@ -45,6 +45,8 @@ class FollowSettings:
                                "(resets the cross-track integral)", min=1.0, max=180.0)
     hold_radius_m: float = spec(1.5, "m", "while holding, drift freely within this radius",
                                 min=0.5, max=1000.0)
+    hold_above_sigma_m: float = spec(2.0, "m", "hold above a still AUV only once its "
+                                     "position σ is below this", min=0.1, max=100.0)
     hold_speed_mps: float = spec(0.5, "m/s", "speed back to the hold point", min=0.05,
                                  max=2.0)
 
@@ -96,8 +98,10 @@ class FollowGuidance:
                 reason = ""
         if reason or geo is None or track is None:
             # AUV still but tracked: hold above it; track lost: hold where we are
-            above = (track.kf_x_m, track.kf_y_m) if (track is not None and geo is None
-                                                    and not reason) else None
+            settled = (track is not None and geo is None and not reason
+                       and track.kf_pos_sigma_m <= self.cfg.hold_above_sigma_m
+                       and bool(track.flags & TrackFlags.LINE_VALID))
+            above = (track.kf_x_m, track.kf_y_m) if settled and track is not None else None
             return self._hold(x, y, reason or "AUV (nearly) still", above)
         self.hold = None
         self.mode = "follow"
