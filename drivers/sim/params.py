@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+from zarco_runtime.config import spec
+
 #: GPS fix modes a scenario may ask for (DESIGN.md §4 sensor noise)
 FIX_MODES = ("none", "single", "dgps", "rtk_float", "rtk_fixed")
 #: Sentences the simulated GPS can send at its full rate; GST and ZDA have their own rates.
@@ -47,8 +49,10 @@ def _md(unit: str, doc: str, *, lo: float | None = None, hi: float | None = None
 
 def _p(default: float | int | bool | str, unit: str, doc: str, *, lo: float | None = None,
        hi: float | None = None, choices: list[str] | None = None) -> Any:
-    """A scalar field with a default and config metadata."""
-    return field(default=default, metadata=_md(unit, doc, lo=lo, hi=hi, choices=choices))
+    """A scalar field with a default and config metadata (:func:`zarco_runtime.config.spec`)."""
+    return spec(default, unit, doc, **{k: v for k, v in
+                                       (("min", lo), ("max", hi), ("choices", choices))
+                                       if v is not None})
 
 
 @dataclass(slots=True)

@@ -27,16 +27,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from zarco_runtime.angles import wrap
 from zarco_runtime.control.allocation import Allocation
 from zarco_runtime.control.lqr import GainSchedule
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.messages import NavState
 from zarco_runtime.settings import Control, VesselModel
-
-
-def wrap(a: float) -> float:
-    """Angle wrapped to (−π, π]."""
-    return math.remainder(a, math.tau)
 
 
 class CurrentObserver:

@@ -144,6 +144,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from zarco_runtime.angles import wrap
 from zarco_runtime.geodesy import LocalFrame
 from zarco_runtime.messages import (
     FixQuality,
@@ -183,11 +184,6 @@ TRUE_HEADING_SENTENCES = frozenset({"HDT", "THS"})
 PREFERRED_WITHIN_S = 2.0
 #: most prediction sub-steps for one interval (longer intervals take longer steps)
 MAX_SUBSTEPS = 200
-
-
-def wrap(a: float) -> float:
-    """Angle wrapped to [−π, π] (rad)."""
-    return math.remainder(a, TAU)
 
 
 def _tov(t: float, latency: float) -> float:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from zarco_runtime.angles import wrap
 from zarco_runtime.geodesy import LocalFrame
 from zarco_runtime.messages import (
     FixQuality,
@@ -34,10 +35,6 @@ FIX_SIGMA_M = {
     FixQuality.DGPS: 0.7,
     FixQuality.SINGLE: 2.0,
 }
-
-
-def wrap(a: float) -> float:
-    return math.remainder(a, math.tau)
 
 
 @dataclass(slots=True)
