@@ -61,3 +61,43 @@ def test_mission_completion_sets_event_and_stops_thrust() -> None:
     a = task.tick(0.0)
     assert (a.u1, a.u2) == (0.0, 0.0)
     assert task.complete.is_set()
+
+
+def _nav_age(t: float, gps_age_s: float) -> NavState:
+    return NavState(t, 20.0, 0.3, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 41.0, -8.0,
+                    FixQuality.RTK_FIXED, True, True, (), gps_age_s)
+
+
+def _task_policy(policy: str, continue_s: float = 10.0) -> tuple[ControlTask, Bus, list[Fault]]:
+    cfg = RuntimeConfig()
+    cfg.failsafe.gps_lost = policy
+    cfg.failsafe.gps_lost_continue_s = continue_s
+    bus = Bus()
+    faults: list[Fault] = []
+    bus.tap(lambda m: faults.append(m) if isinstance(m, Fault) else None)
+    return ControlTask(cfg, bus, Clock(utc_offset_s=0.0), LEGS), bus, faults
+
+
+def test_gps_lost_with_policy_zero_holds_thrust_at_zero_until_a_fix() -> None:
+    task, bus, faults = _task_policy("zero")
+    bus.publish(_nav_age(0.0, 0.1))
+    assert task.tick(0.0).u1 != 0.0
+    # the estimate is still valid (dead reckoning) but the GPS is 0.6 s old
+    bus.publish(_nav_age(0.1, 0.6))
+    a = task.tick(0.1)
+    assert (a.u1, a.u2) == (0.0, 0.0)
+    assert "GPS lost" in faults[-1].reason
+    bus.publish(_nav_age(0.2, 0.05))
+    assert task.tick(0.2).u1 != 0.0
+    assert task.fault == ""
+
+
+def test_gps_lost_with_policy_continue_goes_on_for_n_seconds() -> None:
+    task, bus, faults = _task_policy("continue", continue_s=5.0)
+    bus.publish(_nav_age(0.0, 4.9))
+    assert task.tick(0.0).u1 != 0.0
+    assert not faults
+    # the age is extrapolated with the state: a NavState 0.2 s old at 4.9 s is 5.1 s
+    a = task.tick(0.2)
+    assert (a.u1, a.u2) == (0.0, 0.0)
+    assert "more than 5 s" in faults[-1].reason

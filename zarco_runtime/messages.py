@@ -184,7 +184,10 @@ class NavState:
     heading ``psi_rad`` true in (-π, π]; yaw rate ``r_rps``.  ``cov`` is the
     row-major covariance of (x, y, vn, ve, ψ) (25 values) or empty when
     unknown.  ``pos_valid`` / ``heading_valid`` say whether each part can
-    be trusted for control.
+    be trusted for control.  ``gps_age_s`` is the time since the last GPS
+    position the estimator fused (s; inf before the first): above a few GPS
+    periods the position is dead-reckoned, and the supervisor
+    (``failsafe.gps_lost``) decides whether the vessel goes on.
     """
 
     t: float
@@ -202,6 +205,7 @@ class NavState:
     pos_valid: bool
     heading_valid: bool
     cov: tuple[float, ...] = ()
+    gps_age_s: float = 0.0
 
 
 # --------------------------------------------------- guidance and control

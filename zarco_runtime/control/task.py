@@ -7,7 +7,9 @@ and publish ThrusterCommand, ControlStatus and GuidanceStatus.
 Safety: a demand or command that is not finite becomes zero thrust and a
 Fault; an invalid navigation state (no valid fix or heading) for longer than
 ``failsafe.nav_invalid_s`` commands zero thrust with the reason, and control
-resumes when it is valid again.
+resumes when it is valid again.  On GPS loss (``NavState.gps_age_s`` beyond
+``failsafe.gps_lost_after_s``) the ``failsafe.gps_lost`` policy holds thrust at
+zero or continues on dead reckoning for ``failsafe.gps_lost_continue_s``.
 """
 
 from __future__ import annotations
@@ -107,9 +109,19 @@ class ControlTask:
                 return ZERO
         else:
             self.invalid_since = None
+        gps_age = nav.gps_age_s + age
+        fs = self.cfg.failsafe
+        if gps_age > fs.gps_lost_after_s:
+            if fs.gps_lost == "zero":
+                self._raise_fault(t, "failsafe: GPS lost (gps_lost = zero); zero thrust")
+                return ZERO
+            if gps_age > fs.gps_lost_continue_s:
+                self._raise_fault(t, f"failsafe: GPS lost for more than "
+                                     f"{fs.gps_lost_continue_s:g} s; zero thrust")
+                return ZERO
         nav_now = NavState(t, x, y, nav.vn_mps, nav.ve_mps, psi, nav.r_rps, nav.u_mps,
                            nav.v_mps, nav.lat_deg, nav.lon_deg, nav.fix, nav.pos_valid,
-                           nav.heading_valid)
+                           nav.heading_valid, nav.cov, gps_age)
         if self.follow is not None:
             return self._tick_follow(t, nav_now)
         ls = self.guidance.update(x, y)

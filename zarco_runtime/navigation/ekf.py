@@ -975,6 +975,7 @@ class EkfNavigator:
             u_mps=co * vn + s * ve, v_mps=-s * vn + co * ve, lat_deg=lat, lon_deg=lon,
             fix=self.fix, pos_valid=pos_valid, heading_valid=hdg_valid,
             cov=tuple(cov.ravel().tolist()),
+            gps_age_s=t - c.t_pos if c.pos_init else math.inf,
         )
 
     def _validity(self, c: _Core, t: float) -> tuple[bool, bool]:

@@ -232,4 +232,5 @@ class SimpleNavigator:
             u_mps=c * vn + s * ve, v_mps=-s * vn + c * ve,
             lat_deg=self.lat, lon_deg=self.lon, fix=self.fix,
             pos_valid=pos_valid, heading_valid=hdg_valid, cov=cov,
+            gps_age_s=t - self.t_fix if self.t_fix is not None else math.inf,
         )
