@@ -101,3 +101,13 @@ def test_gps_lost_with_policy_continue_goes_on_for_n_seconds() -> None:
     a = task.tick(0.2)
     assert (a.u1, a.u2) == (0.0, 0.0)
     assert "more than 5 s" in faults[-1].reason
+
+
+def test_no_fix_yet_is_not_a_gps_loss() -> None:
+    """Before the first fix (gps_age inf) the estimate is invalid: the nav_invalid_s
+    grace applies, not the GPS-loss policy."""
+    task, bus, faults = _task_policy("zero")
+    bus.publish(NavState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.nan, math.nan,
+                         FixQuality.NONE, False, True, (), math.inf))
+    task.tick(0.0)
+    assert not faults

@@ -150,6 +150,12 @@ class Navigation:
                         choices=["single", "dgps", "rtk_float", "rtk_fixed"])
 
 
+#: default low-pass (s) of the GPS part of the cross-track rate per estimator,
+#: measured on the rectangle at 1 m/s, seeds 1-3 (tests/bench/navigation.py):
+#: shorter behind the first estimate is noisier (command steps 7.5 → 11 at 0.2 s)
+XTRACK_RATE_TAU_S = {"simple": 0.5, "ekf": 0.2}
+
+
 @dataclass(slots=True)
 class Control:
     """Guidance and control gains.  The line-tracking gains are designed at
@@ -164,8 +170,11 @@ class Control:
     lqr_r_dps: float = spec(10.0, "deg/s", "yaw rate scale", min=0.01, max=360.0)
     lqr_v_mps: float = spec(0.5, "m/s", "sway speed scale", min=1e-3, max=10.0)
     lqr_n_nm: float = spec(20.0, "N m", "yaw moment scale", min=0.01, max=1000.0)
-    xtrack_rate_tau_s: float = spec(0.5, "s", "low-pass of the GPS part of the cross-track "
-                                    "rate (sway, current)", min=0.001, max=60.0)
+    xtrack_rate_tau_s: float | None = spec(
+        None, "s", "low-pass of the GPS part of the cross-track rate (sway, current); unset: "
+        "the estimator's (XTRACK_RATE_TAU_S: 0.5 s behind the first estimate, whose velocity "
+        "is the receiver's raw SOG/COG; 0.2 s behind the EKF, whose velocity is filtered "
+        "already)", min=0.001, max=60.0)
     xtrack_tau_s: float = spec(0.5, "s", "time constant pulling the smoothed cross-track "
                                "error to the GPS one", min=0.001, max=60.0)
     integral_window_m: float = spec(1.0, "m", "integrate d only while |d| is below this",
@@ -233,3 +242,9 @@ class RuntimeConfig:
     tracker: TrackerParams = spec(TrackerParams)
     ekf: EkfSettings = spec(EkfSettings)
     failsafe: Failsafe = spec(Failsafe)
+
+
+def xtrack_rate_tau_s(cfg: RuntimeConfig) -> float:
+    """``control.xtrack_rate_tau_s`` (s), or the estimator's default when unset."""
+    tau = cfg.control.xtrack_rate_tau_s
+    return tau if tau is not None else XTRACK_RATE_TAU_S[cfg.navigation.estimator]

@@ -32,7 +32,7 @@ from zarco_runtime.control.allocation import Allocation
 from zarco_runtime.control.lqr import GainSchedule
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.messages import NavState
-from zarco_runtime.settings import Control, VesselModel
+from zarco_runtime.settings import XTRACK_RATE_TAU_S, Control, VesselModel
 
 
 class CurrentObserver:
@@ -84,9 +84,15 @@ class Demand:
 class LineController:
     """Steering + speed control along the active leg."""
 
-    def __init__(self, vm: VesselModel, ctl: Control, lag_s: float, dt: float) -> None:
+    def __init__(self, vm: VesselModel, ctl: Control, lag_s: float, dt: float,
+                 rate_tau_s: float | None = None) -> None:
+        """``rate_tau_s``: low-pass of the GPS part of the cross-track rate (s);
+        None: ``ctl.xtrack_rate_tau_s``, else the first estimate's 0.5 s."""
         self.vm = vm
         self.ctl = ctl
+        self.tau_r = (rate_tau_s if rate_tau_s is not None
+                      else ctl.xtrack_rate_tau_s if ctl.xtrack_rate_tau_s is not None
+                      else XTRACK_RATE_TAU_S["simple"])
         self.dt = dt
         self.lag_s = lag_s
         self.schedule = GainSchedule(vm, ctl, lag_s, dt)
@@ -133,7 +139,7 @@ class LineController:
         d_dot_gps = -nav.vn_mps * st + nav.ve_mps * ct
         u_w = max(0.0, self.current.u_w)
         d_dot_hdg = u_w * math.sin(wrap(nav.psi_rad - psi_t))
-        tau_r, tau_d = ctl.xtrack_rate_tau_s, ctl.xtrack_tau_s
+        tau_r, tau_d = self.tau_r, ctl.xtrack_tau_s
         if self._fresh_leg:
             self.rho = d_dot_gps - d_dot_hdg
             self.d_hat = d

@@ -34,7 +34,7 @@ from zarco_runtime.messages import (
     ThrusterCommand,
     ThrusterStatus,
 )
-from zarco_runtime.settings import RuntimeConfig
+from zarco_runtime.settings import RuntimeConfig, xtrack_rate_tau_s
 from zarco_runtime.tracking.messages import AuvTrack
 
 log = logging.getLogger("zarco.control")
@@ -60,7 +60,8 @@ class ControlTask:
         self.guidance = LineGuidance(
             legs, cfg.guidance.switching, math.radians(cfg.guidance.turn_rate_dps)
         ) if legs else None
-        self.ctl = LineController(cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt)
+        self.ctl = LineController(cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt,
+                                  xtrack_rate_tau_s(cfg))
         self.mode = mode
         self.follow = FollowGuidance(cfg.follow) if mode == "follow" else None
         self.track = bus.latest(AuvTrack)
@@ -111,7 +112,7 @@ class ControlTask:
             self.invalid_since = None
         gps_age = nav.gps_age_s + age
         fs = self.cfg.failsafe
-        if gps_age > fs.gps_lost_after_s:
+        if fs.gps_lost_after_s < gps_age < math.inf:  # before the first fix: pos_valid
             if fs.gps_lost == "zero":
                 self._raise_fault(t, "failsafe: GPS lost (gps_lost = zero); zero thrust")
                 return ZERO
