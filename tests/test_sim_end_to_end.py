@@ -38,6 +38,9 @@ def test_rectangle_holds_its_lines(rect_1ms: dict) -> None:
     assert 250.0 < r["sim_seconds"] < 400.0
     # the thrusters are not chattered: commands step by little between samples
     assert r["command_step_rms"] < 15.0
+    # the estimate against the simulator's truth (RTK fixed σ 0.015 m; compass bias 1°)
+    assert r["nav_position_rms_m"] < 0.03
+    assert 0.0 < r["nav_heading_rms_deg"] < 2.0
 
 
 def test_every_byte_went_through_the_drivers(rect_1ms: dict) -> None:
@@ -74,6 +77,7 @@ def test_slow_speed_is_the_hard_case_but_within_bounds() -> None:
     assert r["stop"] == "mission complete"
     assert r["xtrack_rms_m"] <= 0.06
     assert r["xtrack_p95_m"] <= 0.12
+    assert r["nav_position_rms_m"] < 0.03
     assert r["command_step_rms"] < 20.0
 
 

@@ -27,7 +27,7 @@ from zarco_runtime.clock import Clock, run_virtual
 from zarco_runtime.follow_report import follow_figures
 from zarco_runtime.geodesy import LocalFrame
 from zarco_runtime.guidance.mission import Leg, build_legs
-from zarco_runtime.messages import Fault, GuidanceStatus, ThrusterCommand
+from zarco_runtime.messages import Fault, GuidanceStatus, NavState, ThrusterCommand
 from zarco_runtime.runtime import Runtime
 from zarco_runtime.scenario import Scenario
 from zarco_runtime.sim_report import TrackLog, line_figures
@@ -77,10 +77,19 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     every = int(max(1, 10 * scn.scenario.record_hz))
     auv_log: list[tuple[float, float, float, float]] = counters.setdefault("auv_log", [])
 
+    nav = bus.latest(NavState)
+    nav_err: list[tuple[float, float, float, float]] = counters.setdefault("nav_err", [])
+
     def record(t: float) -> None:
         s = world.truth()
         g = guid.value
         c = cmd.value
+        n = nav.value
+        if n is not None and n.pos_valid and n.heading_valid:
+            # the estimate as the controller uses it: extrapolated to now
+            age = t - n.t
+            nav_err.append((t, n.x_m + n.vn_mps * age - s.x_m, n.y_m + n.ve_mps * age - s.y_m,
+                            math.remainder(n.psi_rad + n.r_rps * age - s.psi_rad, math.tau)))
         log.add(t, s.x_m, s.y_m, s.psi_rad, g.leg if g else 0,
                 c.u1 if c else 0.0, c.u2 if c else 0.0)
         if acoustics is not None:
@@ -125,6 +134,22 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         counters["tracker"] = runtime.tracking.tracker.counters()
 
 
+#: navigation errors are counted from this time (s): the first fixes and headings
+NAV_SETTLE_S = 10.0
+
+
+def nav_figures(err: list[tuple[float, float, float, float]]) -> dict[str, Any]:
+    """RMS of the navigation estimate (as the controller extrapolates it) against the
+    simulator's truth from ``NAV_SETTLE_S``: horizontal position (m), heading (deg)."""
+    e = [x for x in err if x[0] >= NAV_SETTLE_S]
+    if not e:
+        return {"nav_position_rms_m": math.nan, "nav_heading_rms_deg": math.nan}
+    return {
+        "nav_position_rms_m": math.sqrt(sum(a * a + b * b for _, a, b, _ in e) / len(e)),
+        "nav_heading_rms_deg": math.degrees(math.sqrt(sum(p * p for *_, p in e) / len(e))),
+    }
+
+
 def command_step_rms(log: TrackLog) -> float:
     """RMS change of the thruster commands between true-track samples (% of full
     scale, both thrusters): how busy the thrusters are kept."""
@@ -156,6 +181,7 @@ def run_scenario(scn: Scenario, progress: ProgressFn | None = None) -> SimResult
         "speedup": round(sim_s / wall, 1) if wall > 0 else math.inf,
         **(line_figures(log, legs) if scn.mission.kind != "follow"
            else follow_figures(log, counters)),
+        **nav_figures(counters.get("nav_err", [])),
         "saturation_fraction": counters.get("saturated_ticks", 0) / ticks,
         "command_step_rms": command_step_rms(log),
         "faults": counters.get("faults", []),
