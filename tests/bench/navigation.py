@@ -5,7 +5,10 @@
 Estimator figures come from ``zarco_runtime.navigation.ekf_eval`` (the
 simulated world's NMEA bytes through the real parsers into the EKF, with a
 line-of-sight pilot); line holding is measured with the whole runtime on the
-rectangle at 1 m/s, EKF and first estimate side by side on the same seeds.
+rectangle at 1 m/s (current 0.2 m/s, compass bias 1°, thruster misalignment),
+EKF and first estimate side by side on the same seeds, each with its own
+default cross-track-rate low-pass (settings.XTRACK_RATE_TAU_S), with the
+runtime's navigation error against the truth (``lines_nav_*``).
 Ends by printing one JSON line of its figures.
 """
 
@@ -32,6 +35,10 @@ def lines(estimator: str, seeds: list[int]) -> dict[str, float]:
                                               f"runtime.navigation.estimator={estimator}"],
                                        s)).report for s in seeds]
     return {"xtrack_rms_m": round(statistics.fmean(r["xtrack_rms_m"] for r in reps), 4),
+            "nav_heading_rms_deg": round(statistics.fmean(r["nav_heading_rms_deg"]
+                                                          for r in reps), 3),
+            "nav_position_rms_m": round(statistics.fmean(r["nav_position_rms_m"]
+                                                          for r in reps), 4),
             "command_step_rms": round(statistics.fmean(r["command_step_rms"] for r in reps), 2),
             "speedup": round(statistics.median(r["speedup"] for r in reps), 1)}
 
@@ -48,6 +55,9 @@ def main() -> None:
     out["lines_command_step_rms"] = ekf["command_step_rms"]
     out["lines_speedup_ekf"] = ekf["speedup"]
     out["lines_speedup_simple"] = simple["speedup"]
+    for k in ("nav_heading_rms_deg", "nav_position_rms_m"):
+        out[f"lines_{k}"] = ekf[k]
+        out[f"lines_{k}_simple"] = simple[k]
     print(json.dumps(out))
 
 
