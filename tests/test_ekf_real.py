@@ -1,5 +1,5 @@
 """Navigation EKF over real receiver captures (tests/data/gpsd-logs, from GPSD's
-regression suite), through the real parsers.
+regression suite), through the real parsers, and ``zarco navreport`` (issue 5).
 
 * hemi.log (Hemisphere, GGA + HDT + VTG + ZDA): a static antenna; most of the
   capture has no fix (empty HDT, GGA with zero satellites, VTG mode N), then
@@ -7,88 +7,75 @@ regression suite), through the real parsers.
 * pypilot.log (pypilot autopilot, HDM + ROT + XDR): a magnetic heading of
   ≈ 218.65° and rates of a few hundredths of a degree per minute.
 
-The captures carry no arrival times: sentences are timed by the UTC of the
-GGA/ZDA that carry one (hemi, 2 Hz epochs) or at 5 Hz (pypilot).
+The captures carry no arrival times: :func:`read_capture` times sentences by
+the UTC of the GGA/ZDA that carry one (hemi, 2 Hz epochs) or at 5 sentences
+per second (pypilot).
 """
 
 from __future__ import annotations
 
+import itertools
+import json
 import math
+import statistics
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from drivers.compass_parser import parse_compass
-from drivers.gps_parser import parse_gps
-from drivers.nmea import NmeaError, NmeaFramer
+from drivers.nmea import format_sentence
+from zarco_runtime.cli import main
+from zarco_runtime.decode import Rejected, decode_lines
 from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import (
-    FixQuality,
-    GpsErrorStats,
-    GpsFix,
-    GpsTime,
-    GpsVelocity,
-    Heading,
-    RateOfTurn,
-)
+from zarco_runtime.messages import FixQuality, GpsFix, GpsTime, Heading, RateOfTurn
+from zarco_runtime.navigation import capture_report as cr
+from zarco_runtime.navigation.capture_report import capture_report, ekf_handler, read_capture
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
 
 LOGS = Path(__file__).resolve().parent / "data" / "gpsd-logs"
-
-
-def sentences(name: str) -> list[str]:
-    """The capture's sentences, comments (``#``) left out, through the real framer."""
-    text = "".join(line + "\r\n" for line in (LOGS / name).read_text().splitlines()
-                   if line.strip() and not line.startswith("#"))
-    return NmeaFramer().feed(text.encode("ascii"))
+HEMI = LOGS / "hemi.log"
+PYPILOT = LOGS / "pypilot.log"
 
 
 def feed(nav: EkfNavigator, m: Any) -> None:
-    handler = {GpsFix: nav.on_fix, GpsVelocity: nav.on_velocity, GpsErrorStats: nav.on_gst,
-               Heading: nav.on_heading, RateOfTurn: nav.on_rate}.get(type(m))
+    handler = ekf_handler(nav, m)
     if handler is not None:
         handler(m)
 
 
-def hemi_messages() -> tuple[list[Any], int]:
-    """(messages timed by the capture's UTC, sentences the parser refused)."""
-    out: list[Any] = []
-    refused = 0
-    t = 0.0
-    utc0: float | None = None
-    for line in sentences("hemi.log"):
-        t += 0.001  # keeps the capture's order within an epoch
-        try:
-            msgs = parse_gps(line, t)
-        except NmeaError:
-            refused += 1  # empty HDT, VTG mode N: what a receiver without a fix sends
-            continue
-        for m in msgs:
-            utc = m.utc_epoch_s % 86400.0 if isinstance(m, GpsTime) else getattr(m, "utc_s",
-                                                                                  None)
-            if utc is not None:
-                utc0 = utc - t if utc0 is None else utc0
-                t = max(t, utc - utc0)
-                m.t = t
-            out.append(m)
-    return out, refused
+def decode_refusals(path: Path) -> Counter[str]:
+    """Refusals by reason, as ``zarco decode`` (a separate path) sees them."""
+    with path.open("rb") as fh:
+        return Counter(it.reason for it in decode_lines(fh) if isinstance(it, Rejected))
 
 
+def write_capture(path: Path, bodies: list[str], extra: tuple[bytes, ...] = ()) -> Path:
+    """A capture file of checksummed sentences (``bodies`` without ``$``/``*hh``)."""
+    path.write_bytes(b"# a comment\r\n\r\n" + b"".join(format_sentence(b) for b in bodies)
+                     + b"".join(extra))
+    return path
+
+
+# ------------------------------------------------------------------ hemi
 def test_hemi_capture_position_and_true_heading() -> None:
-    msgs, refused = hemi_messages()
+    cap = read_capture(HEMI)
+    msgs, refused = cap.messages, sum(cap.refused.values())
+    assert cap.timed
     assert refused > 300 and len(msgs) > 300
     fixes = [m for m in msgs if isinstance(m, GpsFix) and m.fix > FixQuality.NONE]
     headings = [m for m in msgs if isinstance(m, Heading)]
     assert len(fixes) == 6 and len(headings) == 4  # what the capture holds
     first = fixes[0]
+    assert first.lat_deg is not None and first.lon_deg is not None
     nav = EkfNavigator(EkfSettings(), LocalFrame(first.lat_deg, first.lon_deg))
     for m in msgs:
         feed(nav, m)
         st = nav.state(m.t)
         assert all(math.isfinite(v) for v in (st.x_m, st.y_m, st.vn_mps, st.psi_rad))
         if isinstance(m, GpsFix) and m.fix > FixQuality.NONE:
+            assert m.lat_deg is not None and m.lon_deg is not None
             n, e = nav.geo.to_ned(m.lat_deg, m.lon_deg)
             assert st.pos_valid and st.fix is FixQuality.SINGLE
             assert math.hypot(st.x_m - n, st.y_m - e) < 0.5  # 4-satellite single point
@@ -107,22 +94,71 @@ def test_hemi_capture_position_and_true_heading() -> None:
     assert end.gps_age_s < 1.0 and "pos_below_min_fix" not in c
 
 
-def pypilot_messages(variation_deg: float | None = None) -> list[Any]:
-    out: list[Any] = []
-    t = 0.0
-    for line in sentences("pypilot.log"):
-        t += 0.1
-        out.extend(parse_compass(line, t, variation_deg=variation_deg))
-    return out
+def test_hemi_capture_is_timed_by_its_utc() -> None:
+    """Timed by ZDA/GGA: times never go back, an epoch's sentences stay within a few ms,
+    and the span is the capture's own (the ZDAs' first to last, ±1 s)."""
+    msgs = read_capture(HEMI).messages
+    ts = [m.t for m in msgs]
+    assert ts == sorted(ts)
+    zda = [m for m in msgs if isinstance(m, GpsTime)]
+    for a, b in itertools.pairwise(zda):
+        assert b.t - a.t == pytest.approx(b.utc_epoch_s - a.utc_epoch_s, abs=0.01)
+    timed = [(m.t, m.utc_s) for m in msgs if isinstance(m, GpsFix) and m.utc_s is not None]
+    assert len(timed) > 6
+    for (ta, ua), (tb, ub) in itertools.pairwise(timed):
+        assert tb - ta == pytest.approx(ub - ua, abs=0.01)
+    span = zda[-1].utc_epoch_s - zda[0].utc_epoch_s
+    assert ts[-1] - ts[0] == pytest.approx(span, abs=1.0)
 
 
+def test_hemi_report() -> None:
+    rep = capture_report(HEMI)
+    assert rep["errors"] == 0 and rep["error_samples"] == []
+    assert rep["timing"] == "utc" and rep["sentences"] == 753
+    # refusals: empty HDT and VTG mode N, as `zarco decode` counts them
+    ref = rep["refused"]
+    assert ref["by_reason"] == dict(decode_refusals(HEMI)) == {"empty": 211, "invalid": 194}
+    assert ref["by_kind"] == {"HDT": 211, "VTG": 194} and ref["total"] == 405
+    assert rep["messages"]["GpsFix"] == 215 and rep["messages"]["Heading"] == 4
+    assert rep["fix_types"] == {"none": 209, "single": 6}
+    assert rep["fixes_fused"] == 6
+    cap = read_capture(HEMI)
+    fixes = [m for m in cap.messages if isinstance(m, GpsFix) and m.fix > FixQuality.NONE]
+    hdt = [m.raw_deg for m in cap.messages if isinstance(m, Heading)]
+    assert rep["origin"] == {"lat_deg": fixes[0].lat_deg, "lon_deg": fixes[0].lon_deg,
+                             "from": "first_fix"}
+    assert rep["variation"]["headings"] == {"true": 4}
+    assert not rep["variation"]["magnetic_uncorrected"]
+    assert rep["t_span_s"] == pytest.approx(107.0, abs=1.0)
+    e = rep["estimate"]
+    assert e["pos_valid"] and e["heading_valid"] and e["fix"] == "single"
+    assert e["heading_deg"] == pytest.approx(274.1, abs=0.1)
+    assert e["heading_deg"] == pytest.approx(statistics.fmean(hdt), abs=0.1)
+    assert 0.0 < e["heading_sigma_deg"] < 5.0
+    # the antenna does not move: within a single-point σ of the fixes, no speed, no turn
+    frame = LocalFrame(fixes[0].lat_deg, fixes[0].lon_deg)  # type: ignore[arg-type]
+    n, e_ = frame.to_ned(fixes[-1].lat_deg, fixes[-1].lon_deg)  # type: ignore[arg-type]
+    assert math.hypot(e["x_m"] - n, e["y_m"] - e_) < 0.5
+    back = frame.to_geodetic(e["x_m"], e["y_m"])
+    assert e["lat_deg"] == pytest.approx(back[0], abs=1e-7)
+    assert e["lon_deg"] == pytest.approx(back[1], abs=1e-7)
+    assert e["speed_mps"] < 0.1 and abs(e["yaw_rate_dps"]) < 0.5
+    assert e["compass_bias_deg"] == 0.0  # no compass: the bias stays at its prior
+    assert rep["gate_rejections"]["total"] == 0 and rep["resets"]["total"] == 0
+    assert rep["counters"]["pos_ok"] == 5 and rep["counters"]["true_heading_ok"] == 3
+
+
+# --------------------------------------------------------------- pypilot
 @pytest.mark.parametrize("variation_deg", [None, -14.5])
 def test_pypilot_capture_magnetic_heading_and_rate(variation_deg: float | None) -> None:
-    msgs = pypilot_messages(variation_deg)
+    cap = read_capture(PYPILOT, variation_deg)
+    msgs = cap.messages
+    assert not cap.timed and msgs[1].t - msgs[0].t == pytest.approx(0.2)  # 5 sentences/s
     hdm = [m for m in msgs if isinstance(m, Heading)]
     rot = [m for m in msgs if isinstance(m, RateOfTurn)]
     assert len(hdm) == 7 and len(rot) == 7
-    nav = EkfNavigator(EkfSettings(), LocalFrame(41.185, -8.705), variation_deg)
+    assert all(m.true == (variation_deg is not None) for m in hdm)
+    nav = EkfNavigator(EkfSettings(), LocalFrame(41.185, -8.705))
     for m in msgs:
         feed(nav, m)
     t = msgs[-1].t
@@ -135,3 +171,126 @@ def test_pypilot_capture_magnetic_heading_and_rate(variation_deg: float | None) 
     status = nav.status(t)
     assert not status.compass_frozen and not status.compass_jumping
     assert status.counters["compass_ok"] == 6 and status.counters["rot_ok"] == 7
+
+
+@pytest.mark.parametrize("variation_deg", [None, -14.5])
+def test_pypilot_report(variation_deg: float | None) -> None:
+    rep = capture_report(PYPILOT, variation_deg)
+    assert rep["errors"] == 0
+    assert rep["timing"] == "line_rate" and rep["line_rate_hz"] == 5.0
+    assert rep["sentences"] == 29 and rep["t_span_s"] == pytest.approx(28 / 5.0)
+    assert rep["refused"] == {"total": 0, "by_reason": {}, "by_kind": {}}
+    assert not decode_refusals(PYPILOT)
+    assert rep["messages"] == {"Attitude": 15, "Heading": 7, "RateOfTurn": 7}
+    assert rep["fix_types"] == {} and rep["fixes_fused"] == 0
+    assert rep["origin"] == {"lat_deg": 0.0, "lon_deg": 0.0, "from": "none"}
+    raw = [float(ln.split(",")[1]) for ln in PYPILOT.read_text().splitlines()
+           if ln.startswith("$APHDM")]
+    var = rep["variation"]
+    if variation_deg is None:
+        assert var == {"deg": 0.0, "source": "none", "headings": {"uncorrected": 7},
+                       "magnetic_uncorrected": True}
+    else:
+        assert var == {"deg": variation_deg, "source": "argument",
+                       "headings": {"variation_argument": 7}, "magnetic_uncorrected": False}
+    e = rep["estimate"]
+    expect = (statistics.fmean(raw) + (variation_deg or 0.0)) % 360.0
+    assert e["heading_deg"] == pytest.approx(expect, abs=0.1)
+    assert e["heading_valid"] and not e["pos_valid"] and not e["pos_ever_valid"]
+    assert e["lat_deg"] is None and e["x_m"] is None and e["gps_age_s"] is None
+    assert abs(e["yaw_rate_dps"]) < 0.05 and abs(e["gyro_bias_dps"]) < 0.05
+    assert e["speed_mps"] == 0.0 and e["compass_faults"] == []
+    assert rep["counters"] == {"compass_ok": 6, "rot_ok": 7}
+    assert rep["gate_rejections"]["total"] == 0 and rep["resets"]["total"] == 0
+
+
+# ------------------------------------------------------- synthetic edges
+def test_hdg_own_variation_wins_and_refusals_are_counted(tmp_path: Path) -> None:
+    """HDG's variation beats --variation, HDM takes --variation; bad sentences are
+    counted by reason and type and never raised."""
+    log = write_capture(tmp_path / "c.log", [
+        "HCHDG,100.0,1.0,E,10.0,W",  # magnetic 101, true 91 with its own variation
+        "HCHDM,95.0,M",  # true 95 + 3 = 98 with the argument
+        "GPGSV,1,1,00",  # a type neither parser takes
+        "HCROT,,A",  # empty rate
+        "HCHDG,100.0,1.0,E,10.0,W",
+    ], (b"$HCHDM,95.0,M*00\r\n", b"\x01\x02garbage\r\n"))
+    rep = capture_report(log, variation_deg=3.0, line_rate_hz=10.0)
+    assert rep["errors"] == 0 and rep["sentences"] == 6
+    assert rep["refused"]["by_reason"] == {"checksum": 1, "empty": 1, "framing": 1,
+                                           "unsupported": 1}
+    assert rep["refused"]["by_kind"] == {"?": 1, "GSV": 1, "HDM": 1, "ROT": 1}
+    assert rep["refused"]["total"] == 4
+    assert rep["variation"]["source"] == "sentence" and rep["variation"]["deg"] == -10.0
+    assert rep["variation"]["headings"] == {"variation_argument": 1,
+                                            "variation_sentence": 2}
+    hdg = [m for m in read_capture(log, 3.0).messages if isinstance(m, Heading)]
+    assert [round(math.degrees(m.heading_rad), 6) for m in hdg] == [91.0, 98.0, 91.0]
+    assert all(m.true for m in hdg)
+
+
+def test_capture_clock_crosses_midnight_and_tolerates_going_back(tmp_path: Path) -> None:
+    gga = "GPGGA,{},4221.8237,N,07101.9439,W,1,08,1.0,5.0,M,-33.0,M,,"
+    log = write_capture(tmp_path / "m.log", [
+        gga.format("235959.00"), gga.format("000000.00"), gga.format("000001.00"),
+        gga.format("000000.50"),  # back by 0.5 s: held
+        gga.format("000002.00"),
+    ])
+    ts = [m.t for m in read_capture(log).messages]
+    assert ts[1] - ts[0] == pytest.approx(1.0, abs=0.01)
+    assert ts[2] - ts[1] == pytest.approx(1.0, abs=0.01)
+    assert ts[3] >= ts[2] and ts[4] - ts[2] == pytest.approx(1.0, abs=0.01)
+    rep = capture_report(log)
+    assert rep["errors"] == 0 and rep["fixes_fused"] == 5
+    assert rep["estimate"]["pos_valid"] and rep["t_span_s"] == pytest.approx(3.0, abs=0.05)
+
+
+def test_ekf_exceptions_are_counted_not_raised(monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    def boom(self: EkfNavigator, m: Heading) -> None:
+        raise RuntimeError("heading exploded")
+
+    monkeypatch.setattr(cr.EkfNavigator, "on_heading", boom)
+    rep = capture_report(HEMI)
+    assert rep["errors"] == 4  # every HDT; the rest of the capture still ran
+    assert "heading exploded" in rep["error_samples"][0]
+    assert rep["fixes_fused"] == 6 and rep["estimate"]["pos_valid"]
+    assert not rep["estimate"]["heading_ever_valid"]
+    assert main(["navreport", str(HEMI)]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out[str(HEMI)]["errors"] == 4
+
+
+# ------------------------------------------------------------------- CLI
+def test_cli_navreport_both_captures(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["navreport", str(HEMI), str(PYPILOT)]) == 0
+    cap = capsys.readouterr()
+    lines = cap.out.splitlines()
+    assert len(lines) == 1
+    reports = json.loads(lines[0])
+    assert list(reports) == [str(HEMI), str(PYPILOT)]
+    assert all(r["errors"] == 0 for r in reports.values())
+    assert reports[str(HEMI)]["estimate"]["heading_deg"] == pytest.approx(274.1, abs=0.1)
+    assert reports[str(PYPILOT)]["variation"]["magnetic_uncorrected"]
+    assert str(HEMI) in cap.err and str(PYPILOT) in cap.err
+    assert "NOT corrected" in cap.err and cap.err.count("EKF errors  0") == 2
+
+
+def test_cli_navreport_variation(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["navreport", str(PYPILOT), "--variation", "-14.5"]) == 0
+    rep = json.loads(capsys.readouterr().out)[str(PYPILOT)]
+    assert rep["variation"]["source"] == "argument"
+    assert rep["estimate"]["heading_deg"] == pytest.approx(218.65 - 14.5, abs=0.1)
+
+
+def test_cli_navreport_missing_file(capsys: pytest.CaptureFixture[str],
+                                    tmp_path: Path) -> None:
+    missing = tmp_path / "nope.log"
+    assert main(["navreport", str(missing)]) == 2
+    cap = capsys.readouterr()
+    err = [ln for ln in cap.err.splitlines() if ln.strip()]
+    assert len(err) == 1 and "nope.log" in err[0] and "No such file" in err[0]
+    # with a good capture too: still 2, and the good one is reported
+    assert main(["navreport", str(HEMI), str(missing)]) == 2
+    reports = json.loads(capsys.readouterr().out)
+    assert reports[str(HEMI)]["errors"] == 0 and "error" in reports[str(missing)]

@@ -1,4 +1,6 @@
-"""``zarco`` command line: ``sim`` (virtual clock), ``run`` (the boat)."""
+"""``zarco`` command line: ``sim`` (virtual clock), ``run`` (the boat), ``navreport``
+(the navigation EKF over NMEA captures); ``hil``, ``replay``, ``decode`` come from
+:mod:`hil.cli`."""
 
 from __future__ import annotations
 
@@ -167,6 +169,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _positive_hz(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (v > 0.0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return v
+
+
+def cmd_navreport(args: argparse.Namespace) -> int:
+    from zarco_runtime.navigation.capture_report import main_navreport
+
+    return main_navreport(args.logs, args.variation, args.line_rate)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="zarco", description="Zarco ASV runtime")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
@@ -188,6 +206,22 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--status", metavar="FILE.jsonl", help="append device health transitions "
                    "(JSON lines, with counters) here, and every device's counters on exit")
     r.set_defaults(func=cmd_run)
+
+    n = sub.add_parser(
+        "navreport", help="run the navigation EKF over NMEA captures and report its estimate",
+        description="Feed each capture through the drivers' parsers into the navigation EKF "
+                    "(timed by the capture's UTC, else at --line-rate) and report what it "
+                    "estimated: a table per capture on stderr, then one JSON line (a dict "
+                    "keyed by file) on stdout. Lines starting with # are skipped. Exit 0: "
+                    "no EKF error; 1: some EKF error; 2: a file could not be read.")
+    n.add_argument("logs", nargs="+", metavar="LOG", help="NMEA capture file(s)")
+    n.add_argument("--variation", type=float, default=None, metavar="DEG",
+                   help="magnetic variation (east +) for magnetic headings that carry none "
+                        "(HDM; an HDG's own variation wins); without it they stay magnetic "
+                        "and the report says so")
+    n.add_argument("--line-rate", type=_positive_hz, default=5.0, metavar="HZ",
+                   help="sentences per second for a capture without UTC times (default 5)")
+    n.set_defaults(func=cmd_navreport)
 
     from hil.cli import register
 
