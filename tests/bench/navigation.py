@@ -23,11 +23,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+from zarco_runtime.navigation.capture_report import capture_report  # noqa: E402
 from zarco_runtime.navigation.ekf_eval import figures  # noqa: E402
 from zarco_runtime.scenario import load_scenario  # noqa: E402
 from zarco_runtime.simulation import run_scenario  # noqa: E402
 
 RECT = ROOT / "config" / "scenarios" / "rectangle.toml"
+LOGS = ROOT / "tests" / "data" / "gpsd-logs"
 
 
 def lines(estimator: str, seeds: list[int]) -> dict[str, float]:
@@ -58,6 +60,16 @@ def main() -> None:
     for k in ("nav_heading_rms_deg", "nav_position_rms_m"):
         out[f"lines_{k}"] = ekf[k]
         out[f"lines_{k}_simple"] = simple[k]
+    # the real captures with position and/or heading (GPSD's regression logs)
+    for name in ("hemi.log", "pypilot.log"):
+        rep = capture_report(LOGS / name)
+        est = rep["estimate"]
+        key = name.removesuffix(".log")
+        out[f"real_{key}_ekf_errors"] = rep["errors"]
+        out[f"real_{key}_refused"] = rep["refused"]["total"]
+        out[f"real_{key}_fixes_fused"] = rep["fixes_fused"]
+        out[f"real_{key}_heading_deg"] = est["heading_deg"]
+        out[f"real_{key}_heading_sigma_deg"] = est["heading_sigma_deg"]
     print(json.dumps(out))
 
 
