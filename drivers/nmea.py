@@ -57,6 +57,14 @@ class NmeaError(ValueError):
         self.detail = detail
 
 
+def sentence_type(line: str) -> str:
+    """Sentence type of a framed line, without checking it: ``GGA`` for
+    ``$GPGGA,...``; the whole address for a proprietary one (``PZTHR``)."""
+    end = min(x for x in (line.find(","), line.find("*"), len(line)) if x >= 0)
+    address = line[1:end]
+    return address if address.startswith("P") else address[2:]
+
+
 def nmea_checksum(body: str) -> int:
     """XOR checksum of ``body`` (the text between ``$`` and ``*``)."""
     cs = 0

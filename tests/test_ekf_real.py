@@ -30,7 +30,7 @@ from zarco_runtime.decode import Rejected, decode_lines
 from zarco_runtime.geodesy import LocalFrame
 from zarco_runtime.messages import FixQuality, GpsFix, GpsTime, Heading, RateOfTurn
 from zarco_runtime.navigation import capture_report as cr
-from zarco_runtime.navigation.capture_report import capture_report, ekf_handler, read_capture
+from zarco_runtime.navigation.capture_report import capture_report, read_capture
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
 
@@ -40,7 +40,7 @@ PYPILOT = LOGS / "pypilot.log"
 
 
 def feed(nav: EkfNavigator, m: Any) -> None:
-    handler = ekf_handler(nav, m)
+    handler = nav.handler(m)
     if handler is not None:
         handler(m)
 

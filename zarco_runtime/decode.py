@@ -45,7 +45,7 @@ from typing import IO, Any
 
 from drivers.compass_parser import COMPASS_HANDLERS, parse_compass
 from drivers.gps_parser import GPS_HANDLERS, parse_gps
-from drivers.nmea import NmeaError, NmeaFramer
+from drivers.nmea import NmeaError, NmeaFramer, sentence_type
 from drivers.thruster_protocol import parse_pzthr, parse_pzths
 from zarco_runtime.messages import (
     Attitude,
@@ -103,12 +103,9 @@ def message_fields(m: Any) -> dict[str, Any]:
     return {"message": type(m).__name__}  # pragma: no cover - a new message type
 
 
-def _sentence_type(line: str) -> str:
-    comma = line.find(",")
-    star = line.find("*")
-    end = min(x for x in (comma, star, len(line)) if x >= 0)
-    address = line[1:end]
-    return address if address.startswith("P") else address[2:]
+def is_compass_type(stype: str) -> bool:
+    """A sentence type only the compass driver reads (HDG, HDM, ROT, XDR)."""
+    return stype in COMPASS_HANDLERS and stype not in GPS_HANDLERS
 
 
 def decode_sentence(line: str, variation_deg: float | None = None
@@ -119,13 +116,13 @@ def decode_sentence(line: str, variation_deg: float | None = None
     ``compass``, ``thrusters``); unknown types go through the GPS parser so
     that framing and checksum problems are reported before ``unsupported``.
     """
-    stype = _sentence_type(line)
+    stype = sentence_type(line)
     if stype == "PZTHR":
         u1, u2 = parse_pzthr(line)
         return "thrusters", {"kind": "PZTHR", "u1": u1, "u2": u2}
     if stype == "PZTHS":
         return "thrusters", {"kind": "PZTHS", **message_fields(parse_pzths(line, 0.0))}
-    if stype in COMPASS_HANDLERS and stype not in GPS_HANDLERS:
+    if is_compass_type(stype):
         device, msgs = "compass", parse_compass(line, 0.0, "compass", variation_deg)
     else:
         device, msgs = "gps", parse_gps(line, 0.0, "gps", variation_deg)

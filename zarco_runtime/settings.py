@@ -244,7 +244,7 @@ class RuntimeConfig:
     failsafe: Failsafe = spec(Failsafe)
 
 
-def xtrack_rate_tau_s(cfg: RuntimeConfig) -> float:
-    """``control.xtrack_rate_tau_s`` (s), or the estimator's default when unset."""
-    tau = cfg.control.xtrack_rate_tau_s
-    return tau if tau is not None else XTRACK_RATE_TAU_S[cfg.navigation.estimator]
+def xtrack_rate_tau_s(ctl: Control, estimator: str = "simple") -> float:
+    """``control.xtrack_rate_tau_s`` (s), or the ``estimator``'s default when unset."""
+    tau = ctl.xtrack_rate_tau_s
+    return tau if tau is not None else XTRACK_RATE_TAU_S[estimator]

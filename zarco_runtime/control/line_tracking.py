@@ -32,7 +32,7 @@ from zarco_runtime.control.allocation import Allocation
 from zarco_runtime.control.lqr import GainSchedule
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.messages import NavState
-from zarco_runtime.settings import XTRACK_RATE_TAU_S, Control, VesselModel
+from zarco_runtime.settings import Control, VesselModel, xtrack_rate_tau_s
 
 
 class CurrentObserver:
@@ -87,12 +87,10 @@ class LineController:
     def __init__(self, vm: VesselModel, ctl: Control, lag_s: float, dt: float,
                  rate_tau_s: float | None = None) -> None:
         """``rate_tau_s``: low-pass of the GPS part of the cross-track rate (s);
-        None: ``ctl.xtrack_rate_tau_s``, else the first estimate's 0.5 s."""
+        None: :func:`~zarco_runtime.settings.xtrack_rate_tau_s` for the first estimate."""
         self.vm = vm
         self.ctl = ctl
-        self.tau_r = (rate_tau_s if rate_tau_s is not None
-                      else ctl.xtrack_rate_tau_s if ctl.xtrack_rate_tau_s is not None
-                      else XTRACK_RATE_TAU_S["simple"])
+        self.tau_r = rate_tau_s if rate_tau_s is not None else xtrack_rate_tau_s(ctl)
         self.dt = dt
         self.lag_s = lag_s
         self.schedule = GainSchedule(vm, ctl, lag_s, dt)

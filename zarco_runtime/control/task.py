@@ -61,7 +61,7 @@ class ControlTask:
             legs, cfg.guidance.switching, math.radians(cfg.guidance.turn_rate_dps)
         ) if legs else None
         self.ctl = LineController(cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt,
-                                  xtrack_rate_tau_s(cfg))
+                                  xtrack_rate_tau_s(cfg.control, cfg.navigation.estimator))
         self.mode = mode
         self.follow = FollowGuidance(cfg.follow) if mode == "follow" else None
         self.track = bus.latest(AuvTrack)

@@ -49,22 +49,20 @@ import json
 import math
 import sys
 from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
 from drivers.compass_parser import heading_from_magnetic, parse_compass
 from drivers.gps_parser import parse_gps
-from drivers.nmea import NmeaError, NmeaFramer
+from drivers.nmea import NmeaError, NmeaFramer, sentence_type
+from zarco_runtime.decode import is_compass_type
 from zarco_runtime.geodesy import LocalFrame
 from zarco_runtime.messages import (
     FixQuality,
-    GpsErrorStats,
     GpsFix,
-    GpsVelocity,
     Heading,
-    RateOfTurn,
 )
 from zarco_runtime.navigation.ekf import KIND_NAMES, EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
@@ -79,32 +77,19 @@ DAY_S = 86400.0
 ERROR_SAMPLES = 5
 
 
-def _sentence_kind(line: str) -> str:
-    """Sentence type of a framed line (``GGA``; ``PZTHR`` for a proprietary one)."""
-    end = len(line)
-    for ch in ",*":
-        i = line.find(ch)
-        if 0 <= i < end:
-            end = i
-    address = line[1:end]
-    return address[2:] if len(address) == 5 and not address.startswith("P") else address
-
-
 def parse_sentence(line: str, t: float, variation_deg: float | None = None) -> list[Any]:
     """One framed sentence received at ``t`` (s) → bus messages, or ``NmeaError``.
 
-    GNSS sentence types go to :func:`parse_gps` (source ``gps``: HDT/THS are
-    the receiver's true heading); the types it does not support to
-    :func:`parse_compass` (source ``compass``).  ``variation_deg`` (east +) is
-    given to the GPS parser only (a VTG with a magnetic track only): magnetic
-    headings come back magnetic unless their HDG carries its own variation.
+    Routed as ``zarco decode`` routes it (:func:`zarco_runtime.decode.is_compass_type`):
+    the types only a compass sends to :func:`parse_compass` (source ``compass``),
+    everything else to :func:`parse_gps` (source ``gps``: HDT/THS are the
+    receiver's true heading).  ``variation_deg`` (east +) is given to the GPS
+    parser only (a VTG with a magnetic track only): magnetic headings come back
+    magnetic unless their HDG carries its own variation.
     """
-    try:
-        return parse_gps(line, t, "gps", variation_deg)
-    except NmeaError as exc:
-        if exc.reason != "unsupported":
-            raise
-    return parse_compass(line, t, "compass", None)
+    if is_compass_type(sentence_type(line)):
+        return parse_compass(line, t, "compass", None)
+    return parse_gps(line, t, "gps", variation_deg)
 
 
 @dataclass(slots=True)
@@ -206,27 +191,12 @@ def read_capture(path: Path, variation_deg: float | None = None,
             msgs = parse_sentence(line, t, variation_deg)
         except NmeaError as exc:
             cap.refused[exc.reason] += 1
-            cap.refused_kind[_sentence_kind(line)] += 1
+            cap.refused_kind[sentence_type(line)] += 1
             continue
         for m in msgs:
             cap.messages.append(_correct_heading(m, variation_deg, cap)
                                 if isinstance(m, Heading) else m)
     return cap
-
-
-def ekf_handler(nav: EkfNavigator, m: Any) -> Callable[[Any], None] | None:
-    """The ``EkfNavigator.on_*`` method that takes message ``m`` (None: not used)."""
-    if isinstance(m, GpsFix):
-        return nav.on_fix
-    if isinstance(m, GpsVelocity):
-        return nav.on_velocity
-    if isinstance(m, GpsErrorStats):
-        return nav.on_gst
-    if isinstance(m, Heading):
-        return nav.on_heading
-    if isinstance(m, RateOfTurn):
-        return nav.on_rate
-    return None
 
 
 def _finite(x: float) -> float | None:
@@ -288,7 +258,7 @@ def capture_report(path: Path, variation_deg: float | None = None,
     errors: list[str] = []
     pos_ever = hdg_ever = False
     for m in msgs:
-        handler = ekf_handler(nav, m)
+        handler = nav.handler(m)
         if handler is None:
             continue
         try:

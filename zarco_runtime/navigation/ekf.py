@@ -140,7 +140,9 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -396,6 +398,20 @@ class EkfNavigator:
             self.counters[key] = self.counters.get(key, 0) + 1
 
     # ------------------------------------------------------ message input
+    def handler(self, m: object) -> Callable[[Any], None] | None:
+        """The ``on_*`` method that takes message ``m`` (None: a message it does not use)."""
+        if isinstance(m, GpsFix):
+            return self.on_fix
+        if isinstance(m, GpsVelocity):
+            return self.on_velocity
+        if isinstance(m, GpsErrorStats):
+            return self.on_gst
+        if isinstance(m, Heading):
+            return self.on_heading
+        if isinstance(m, RateOfTurn):
+            return self.on_rate
+        return None
+
     def on_fix(self, m: GpsFix) -> None:
         """A GPS position (GGA, or RMC when no GGA comes): one per receiver epoch."""
         cfg = self.cfg

@@ -55,7 +55,6 @@ from drivers.sim.params import WorldParams
 from drivers.sim.world import SimWorld
 from zarco_runtime.control.thruster_map import ThrusterMap
 from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import GpsErrorStats, GpsFix, GpsVelocity, Heading, RateOfTurn
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.settings import DEFAULT_TABLE_F, DEFAULT_TABLE_U
@@ -227,8 +226,6 @@ def run(case: Case) -> Result:
         setattr(cfg, k, v)
     frame = LocalFrame(params.origin_lat_deg, params.origin_lon_deg)
     nav = EkfNavigator(cfg, frame)
-    handlers = {GpsFix: nav.on_fix, GpsVelocity: nav.on_velocity, GpsErrorStats: nav.on_gst,
-                Heading: nav.on_heading, RateOfTurn: nav.on_rate}
     pilot = Pilot(case.waypoints, case.speed_mps, case.circle_s)
     fg, fc = NmeaFramer(), NmeaFramer()
     queue: list[tuple[float, int, Any]] = []
@@ -273,7 +270,7 @@ def run(case: Case) -> Result:
                 m = case.tamper(m, t)
                 if m is None:
                     continue
-            h = handlers.get(type(m))
+            h = nav.handler(m)
             if h is not None:
                 t0 = perf()
                 h(m)
