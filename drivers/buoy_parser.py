@@ -6,8 +6,8 @@
     $PZBST,hhmmss.ss,ddmmyy,lat,N|S,lon,E|W,V,S*hh    buoy status, 1 Hz
 
 Pure functions: :func:`parse_buoy` takes one framed line and returns a list
-with one :class:`~zarco_runtime.tracking.messages.AcousticEvent` or
-:class:`~zarco_runtime.tracking.messages.BuoyStatus`, or raises
+with one :class:`~zarco_core.auv_messages.AcousticEvent` or
+:class:`~zarco_core.auv_messages.BuoyStatus`, or raises
 :class:`~drivers.nmea.NmeaError`.  Strict: the ``*hh`` checksum is required
 (:func:`~drivers.nmea.split_checked`), the field count must be exact, and a
 malformed or out-of-range field is ``NmeaError("field")`` (an empty mandatory
@@ -39,7 +39,7 @@ from drivers.nmea import (
     format_sentence,
     split_checked,
 )
-from zarco_runtime.tracking.messages import AcousticEvent, BuoyStatus
+from zarco_core.auv_messages import AcousticEvent, BuoyStatus
 
 _TIME_RE = re.compile(r"(\d\d)(\d\d)(\d\d)(?:\.(\d{1,6}))?")
 _DATE_RE = re.compile(r"(\d\d)(\d\d)(\d\d)")

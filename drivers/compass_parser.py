@@ -29,7 +29,7 @@ from drivers.nmea import (
     require_fields,
     wrap_2pi,
 )
-from zarco_runtime.messages import Attitude, Heading, RateOfTurn
+from zarco_core.messages import Attitude, Heading, RateOfTurn
 
 #: XDR transducer names for pitch and roll (upper-cased before lookup)
 PITCH_NAMES = frozenset({"PTCH", "PITCH"})

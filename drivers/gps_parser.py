@@ -47,7 +47,7 @@ from drivers.nmea import (
     require_fields,
     wrap_2pi,
 )
-from zarco_runtime.messages import FixQuality, GpsErrorStats, GpsFix, GpsTime, GpsVelocity
+from zarco_core.messages import FixQuality, GpsErrorStats, GpsFix, GpsTime, GpsVelocity
 
 #: knots → m/s, exact (1 international nautical mile = 1852 m)
 KNOT_MPS = 1852.0 / 3600.0

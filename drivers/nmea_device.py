@@ -21,11 +21,11 @@ from collections.abc import Callable
 from typing import Any
 
 from drivers.nmea import NmeaError, NmeaFramer
-from drivers.transports import SimPorts, Transport, TransportError, open_transport
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
-from zarco_runtime.messages import DeviceHealth, HealthState
-from zarco_runtime.settings import Device
+from drivers.settings import Device
+from drivers.transports import Ports, SystemPorts, Transport, TransportError
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.messages import DeviceHealth, HealthState
 
 ParseFn = Callable[[str, float], list[Any]]
 
@@ -62,12 +62,12 @@ class DeviceLink:
     """Shared state of a device driver: counters, health, reconnect."""
 
     def __init__(self, name: str, cfg: Device, bus: Bus, clock: Clock,
-                 sim: SimPorts | None = None) -> None:
+                 ports: Ports | None = None) -> None:
         self.name = name
         self.cfg = cfg
         self.bus = bus
         self.clock = clock
-        self.sim = sim
+        self.ports: Ports = ports or SystemPorts()
         self.counters: Counter[str] = Counter()
         self.state = HealthState.DISCONNECTED
         self.reason = "not opened yet"
@@ -128,7 +128,7 @@ class DeviceLink:
         backoff = BACKOFF_MIN_S
         while True:
             try:
-                tr = await open_transport(self.cfg.url, self.cfg.baudrate, self.sim)
+                tr = await self.ports.open(self.cfg.url, self.cfg.baudrate)
                 self.last_rx = self.clock.now()  # silence is counted from the opening
                 self.set_state(HealthState.STALE, "opened, waiting for data")
                 return tr
@@ -155,8 +155,8 @@ class NmeaDevice(DeviceLink):
     """An NMEA input device (GPS, compass/IMU): read, frame, parse, publish."""
 
     def __init__(self, name: str, cfg: Device, bus: Bus, clock: Clock, parse: ParseFn,
-                 sim: SimPorts | None = None) -> None:
-        super().__init__(name, cfg, bus, clock, sim)
+                 ports: Ports | None = None) -> None:
+        super().__init__(name, cfg, bus, clock, ports)
         self.parse = parse
 
     def handle_line(self, line: str, t: float) -> None:
@@ -202,7 +202,7 @@ class NmeaDevice(DeviceLink):
                 if url.startswith("file://"):
                     await self._corrections_from_file(url[len("file://"):])
                     return
-                src = await open_transport(url, self.cfg.baudrate, self.sim)
+                src = await self.ports.open(url, self.cfg.baudrate)
                 backoff = BACKOFF_MIN_S
                 try:
                     while True:

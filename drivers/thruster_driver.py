@@ -19,12 +19,12 @@ import math
 
 from drivers.nmea import NmeaError, NmeaFramer
 from drivers.nmea_device import DeviceLink
+from drivers.settings import Device
 from drivers.thruster_protocol import encode_pzthr, parse_pzths
-from drivers.transports import SimPorts, Transport, TransportError
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
-from zarco_runtime.messages import HealthState, ThrusterCommand
-from zarco_runtime.settings import Device
+from drivers.transports import Ports, Transport, TransportError
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.messages import HealthState, ThrusterCommand
 
 #: silence from the controller after which the driver commands zero (s)
 HOLD_S = 0.3
@@ -32,9 +32,9 @@ ZERO = encode_pzthr(0.0, 0.0)
 
 
 class ThrusterDriver(DeviceLink):
-    def __init__(self, cfg: Device, bus: Bus, clock: Clock, sim: SimPorts | None = None,
+    def __init__(self, cfg: Device, bus: Bus, clock: Clock, ports: Ports | None = None,
                  name: str = "thrusters") -> None:
-        super().__init__(name, cfg, bus, clock, sim)
+        super().__init__(name, cfg, bus, clock, ports)
         bus.listen(ThrusterCommand, self.on_command)
         self.tr: Transport | None = None
         self.last_cmd_t = -math.inf

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 from drivers.nmea import NmeaError, field_float, format_sentence, split_checked
-from zarco_runtime.messages import ThrusterStatus
+from zarco_core.messages import ThrusterStatus
 
 #: command limit, percent of full thrust
 U_MAX = 100.0

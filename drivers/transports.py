@@ -4,12 +4,17 @@
 ``/dev/ttyUSB0``            serial port (pyserial-asyncio-fast)
 ``serial:///dev/ttyUSB0``   the same, explicit
 ``tcp://host:port``         TCP stream (radio modems are often bridges)
-``sim://NAME``              in-memory port of the simulated backend
-``loop://``                 in-memory loopback (what you write is read)
+``loop://``                 in-memory loopback (what you write is read; tests)
 ==========================  ============================================
 
 A transport reads chunks of bytes (``b""`` means the far end closed) and
 writes bytes.  Drivers own their transport and reopen it on errors.
+
+Which URLs can be opened is decided by a *port backend* (:class:`Ports`)
+given to the runtime, as python-can selects an interface: the vessel uses
+:class:`SystemPorts` (serial and TCP), the in-process simulator injects its
+own backend for ``sim://NAME`` (``drivers.sim.ports``).  The drivers never
+know which one they talk to.
 """
 
 from __future__ import annotations
@@ -125,25 +130,6 @@ def memory_link(name: str) -> tuple[MemoryTransport, MemoryTransport]:
     return MemoryTransport(url, a, b), MemoryTransport(url, b, a)
 
 
-class SimPorts:
-    """Registry of the simulated backend's ports, by name (``sim://NAME``)."""
-
-    def __init__(self) -> None:
-        self._ports: dict[str, MemoryTransport] = {}
-
-    def create(self, name: str) -> MemoryTransport:
-        """Create the link ``name``; returns the *device* end."""
-        dev, rt = memory_link(name)
-        self._ports[name] = rt
-        return dev
-
-    def runtime_end(self, name: str) -> MemoryTransport:
-        try:
-            return self._ports[name]
-        except KeyError:
-            raise TransportError(f"sim://{name}: no such simulated port") from None
-
-
 class StreamTransport:
     """Transport over an asyncio StreamReader/StreamWriter (serial or TCP)."""
 
@@ -171,34 +157,70 @@ class StreamTransport:
             await self._writer.wait_closed()
 
 
-async def open_transport(url: str, baudrate: int = 115200,
-                         sim: SimPorts | None = None) -> Transport:
-    """Open the device at ``url``; raises TransportError with the reason."""
-    if url.startswith("sim://"):
-        if sim is None:
-            raise TransportError(f"{url}: simulated ports exist only in simulation")
-        return sim.runtime_end(url[len("sim://"):])
-    if url.startswith("loop://"):
-        pipe = MemoryPipe()
-        return MemoryTransport(url, pipe, pipe)
-    if url.startswith("tcp://"):
-        u = urlparse(url)
-        if not u.hostname or not u.port:
-            raise TransportError(f"{url}: expected tcp://HOST:PORT")
-        try:
-            reader, writer = await asyncio.open_connection(u.hostname, u.port)
-        except OSError as exc:
-            raise TransportError(f"{url}: {exc}") from exc
-        return StreamTransport(url, reader, writer)
-    path = url[len("serial://"):] if url.startswith("serial://") else url
-    if not path:
-        raise TransportError("empty device address")
-    import serial_asyncio_fast  # pyserial-asyncio-fast
+#: URL schemes the vessel's own backend opens (a bare path is a serial port)
+SYSTEM_SCHEMES = ("serial", "tcp")
 
-    try:
-        reader, writer = await serial_asyncio_fast.open_serial_connection(
-            url=path, baudrate=baudrate
-        )
-    except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
-        raise TransportError(f"{path}: {exc}") from exc
-    return StreamTransport(url, reader, writer)
+
+def url_scheme(url: str) -> str:
+    """The scheme of a device URL: ``serial`` for a bare path, else what precedes
+    ``://`` (``""`` for an empty or malformed URL)."""
+    if not url.strip():
+        return ""
+    if "://" in url:
+        return url.split("://", 1)[0].lower()
+    return "serial" if url.startswith("/") or url.startswith("COM") else ""
+
+
+class Ports(Protocol):
+    """A port backend: opens device URLs of the schemes it names."""
+
+    schemes: tuple[str, ...]
+
+    async def open(self, url: str, baudrate: int) -> Transport:
+        """Open ``url``; raises TransportError with the reason."""
+        ...
+
+
+class SystemPorts:
+    """The vessel's port backend: serial ports (pyserial-asyncio-fast) and TCP,
+    plus ``loop://`` for tests when ``loopback`` is set."""
+
+    def __init__(self, loopback: bool = False) -> None:
+        self.schemes: tuple[str, ...] = SYSTEM_SCHEMES + (("loop",) if loopback else ())
+
+    async def open(self, url: str, baudrate: int) -> Transport:
+        scheme = url_scheme(url)
+        if scheme not in self.schemes:
+            raise TransportError(f"{url or '(empty)'}: no such device scheme here "
+                                 f"(this backend opens {', '.join(self.schemes)})")
+        if scheme == "loop":
+            pipe = MemoryPipe()
+            return MemoryTransport(url, pipe, pipe)
+        if scheme == "tcp":
+            u = urlparse(url)
+            if not u.hostname or not u.port:
+                raise TransportError(f"{url}: expected tcp://HOST:PORT")
+            try:
+                reader, writer = await asyncio.open_connection(u.hostname, u.port)
+            except OSError as exc:
+                raise TransportError(f"{url}: {exc}") from exc
+            return StreamTransport(url, reader, writer)
+        path = url[len("serial://"):] if url.startswith("serial://") else url
+        if not path:
+            raise TransportError("empty device address")
+        import serial_asyncio_fast  # pyserial-asyncio-fast
+
+        try:
+            reader, writer = await serial_asyncio_fast.open_serial_connection(
+                url=path, baudrate=baudrate
+            )
+        except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
+            raise TransportError(f"{path}: {exc}") from exc
+        return StreamTransport(url, reader, writer)
+
+
+async def open_transport(url: str, baudrate: int = 115200,
+                         ports: Ports | None = None) -> Transport:
+    """Open the device at ``url`` with ``ports`` (default: the system's serial and
+    TCP backend, and ``loop://``); raises TransportError with the reason."""
+    return await (ports or SystemPorts(loopback=True)).open(url, baudrate)

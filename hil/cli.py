@@ -1,4 +1,4 @@
-"""Sub-commands of ``zarco`` that live with the HIL tools (hil, replay, decode)."""
+"""``zarco hil``: registered through the ``zarco.commands`` entry point."""
 
 from __future__ import annotations
 
@@ -12,18 +12,6 @@ def _positive(text: str) -> float:
     return v
 
 
-def cmd_decode(args: argparse.Namespace) -> int:
-    from zarco_runtime.decode import main_decode
-
-    return main_decode(args.log, args.variation, args.summary)
-
-
-def cmd_replay(args: argparse.Namespace) -> int:
-    from zarco_runtime.replay import main_replay
-
-    return main_replay(args)
-
-
 def cmd_hil(args: argparse.Namespace) -> int:
     from hil.run import main_hil
 
@@ -32,40 +20,6 @@ def cmd_hil(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Add this package's sub-commands to the ``zarco`` parser."""
-    d = sub.add_parser(
-        "decode", help="print what the drivers accept in an NMEA capture, one JSON line each",
-        description="Decode an NMEA capture the way the drivers do: one JSON line per "
-                    "accepted sentence on stdout, refusals with their reason on stderr. "
-                    "Lines starting with # are skipped.")
-    d.add_argument("log", help="capture file, or - for standard input")
-    d.add_argument("--variation", type=float, default=None, metavar="DEG",
-                   help="magnetic variation (east +) for sentences that carry none "
-                        "(HDM, VTG magnetic track)")
-    d.add_argument("-s", "--summary", action="store_true",
-                   help="print counts of accepted and refused sentences on stderr at the end")
-    d.set_defaults(func=cmd_decode)
-
-    r = sub.add_parser(
-        "replay", help="feed a recorded NMEA capture into a serial port at its recorded pace",
-        description="Write a capture into a serial port (or pseudo-terminal) at the pace "
-                    "of its ZDA/RMC/GGA times, or N times faster. Lines starting with # are "
-                    "not sent.")
-    r.add_argument("log", help="capture file, or - for standard input")
-    r.add_argument("--port", required=True, metavar="PATH",
-                   help="serial port or pseudo-terminal to write to")
-    r.add_argument("--rate", type=_positive, default=1.0, metavar="N",
-                   help="play N times faster than recorded (0: as fast as the port takes)")
-    r.add_argument("--baudrate", type=int, default=115200, help="serial speed (bit/s)")
-    r.add_argument("--line-rate", type=_positive, default=10.0, metavar="HZ",
-                   help="lines per second when the capture carries no times (default 10)")
-    r.add_argument("--max-gap", type=_positive, default=10.0, metavar="S",
-                   help="shorten longer silences in the capture to this (s, recorded time; "
-                        "default 10; 0: keep every gap)")
-    r.add_argument("--loop", type=int, default=1, metavar="K",
-                   help="play the capture K times (0: forever)")
-    r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
-    r.set_defaults(func=cmd_replay)
-
     h = sub.add_parser(
         "hil", help="hardware-in-the-loop: zarco run against a simulator behind pseudo-terminals",
         description="Run a scenario in real time: the simulator serves one pseudo-terminal "

@@ -41,11 +41,11 @@ import numpy as np
 from drivers.sim.faults import FaultSpec
 from hil.runtime_log import DEVICES, RuntimeLog
 from hil.simulator import HilSimulator
-from zarco_runtime.geodesy import LocalFrame
+from zarco_core.geodesy import LocalFrame
 from zarco_runtime.guidance.mission import Leg, build_legs
-from zarco_runtime.scenario import Scenario
-from zarco_runtime.sim_report import TrackLog, line_figures
-from zarco_runtime.simulation import command_step_rms
+from zarco_tools.scenario import Scenario
+from zarco_tools.sim_report import TrackLog, line_figures
+from zarco_tools.simulation import command_step_rms
 
 #: how long the runtime may take to open its ports (s)
 ATTACH_TIMEOUT_S = 30.0
@@ -508,7 +508,7 @@ def run_hil(scn: Scenario, faults: list[FaultSpec], run_dir: str | Path | None =
 
 
 def summary(report: dict[str, Any]) -> str:
-    from zarco_runtime.cli import summary as sim_summary
+    from zarco_tools.cli import summary as sim_summary
 
     h = report["hil"]
     t = h["timing"]
@@ -556,7 +556,7 @@ def main_hil(args: Any) -> int:
         Path(args.report).parent.mkdir(parents=True, exist_ok=True)
         Path(args.report).write_text(json.dumps(res.report, indent=2) + "\n")
     if args.plot:
-        from zarco_runtime.plot import plot_lines
+        from zarco_tools.plot import plot_lines
 
         Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
         plot_lines(args.plot, res.log, res.legs,

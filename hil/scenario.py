@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from drivers.sim.faults import FaultSpec
-from zarco_runtime.scenario import Scenario, load_scenario
+from zarco_tools.scenario import Scenario, load_scenario
 
 
 def load_hil_scenario(path: str | Path, overrides: list[str] | None = None,

@@ -43,8 +43,8 @@ from drivers.thruster_protocol import parse_pzthr
 from hil.ptys import PtyPort
 from zarco_runtime.guidance.lines import LineGuidance
 from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.scenario import Scenario
-from zarco_runtime.sim_report import TrackLog
+from zarco_tools.scenario import Scenario
+from zarco_tools.sim_report import TrackLog
 
 #: how often the ports are checked for the runtime opening / closing them (s)
 ATTACH_POLL_S = 0.005

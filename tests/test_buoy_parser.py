@@ -9,7 +9,7 @@ import pytest
 
 from drivers.buoy_parser import encode_pzbae, encode_pzbst, parse_buoy, utc_text
 from drivers.nmea import NmeaError, format_sentence
-from zarco_runtime.tracking.messages import AcousticEvent, BuoyStatus
+from zarco_core.auv_messages import AcousticEvent, BuoyStatus
 
 EPOCH = datetime(2026, 6, 1, 10, 0, 0, tzinfo=UTC).timestamp()
 

@@ -10,7 +10,7 @@ import pytest
 
 from drivers.compass_parser import parse_compass
 from drivers.nmea import NmeaError, format_sentence
-from zarco_runtime.messages import Attitude, Heading, RateOfTurn
+from zarco_core.messages import Attitude, Heading, RateOfTurn
 
 DATA = Path(__file__).parent / "data" / "gpsd-logs"
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from zarco_runtime.config import ConfigError
-from zarco_runtime.scenario import load_runtime_config, load_scenario
+from zarco_core.config import ConfigError
+from zarco_tools.scenario import load_runtime_config, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 RECT = ROOT / "config" / "scenarios" / "rectangle.toml"

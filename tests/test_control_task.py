@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import math
 
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.messages import Fault, FixQuality, NavState
 from zarco_runtime.control.task import ControlTask
 from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.messages import Fault, FixQuality, NavState
 from zarco_runtime.settings import RuntimeConfig
 
 LEGS = [Leg(0, 0.0, 0.0, 100.0, 0.0, 1.0)]

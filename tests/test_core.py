@@ -6,9 +6,9 @@ import asyncio
 
 import pytest
 
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock, DeadlockError, run_virtual
-from zarco_runtime.messages import Fault
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock, DeadlockError, run_virtual
+from zarco_core.messages import Fault
 
 
 def test_virtual_clock_runs_an_hour_instantly_and_in_order() -> None:
@@ -62,7 +62,7 @@ def test_slow_subscriber_drops_oldest_and_never_blocks() -> None:
 
 
 def test_multi_type_subscription_keeps_order() -> None:
-    from zarco_runtime.messages import RateOfTurn
+    from zarco_core.messages import RateOfTurn
 
     bus = Bus()
     sub = bus.subscribe(Fault, RateOfTurn)

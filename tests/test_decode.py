@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from zarco_runtime.cli import main
-from zarco_runtime.decode import DecodeStats, Rejected, decode_lines
+from zarco_tools.decode import DecodeStats, Rejected, decode_lines
 
 DATA = Path(__file__).parent / "data" / "gpsd-logs"
 GPS_LOGS = ["hemi.log", "nmea-rtk.log", "polarx2.log", "ublox-zed-f9p-nmea.log"]

@@ -15,11 +15,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
-from zarco_runtime.config import ConfigError, build
-from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import (
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.config import ConfigError, build
+from zarco_core.geodesy import LocalFrame
+from zarco_core.localgeo import FastLocalFrame
+from zarco_core.messages import (
     FixQuality,
     GpsErrorStats,
     GpsFix,
@@ -31,10 +32,9 @@ from zarco_runtime.messages import (
 from zarco_runtime.navigation import task as nav_task
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
-from zarco_runtime.navigation.ekf_eval import Case, run
-from zarco_runtime.navigation.localgeo import FastLocalFrame
 from zarco_runtime.navigation.simple import SimpleNavigator
 from zarco_runtime.settings import RuntimeConfig
+from zarco_tools.ekf_eval import Case, run
 
 LAT0, LON0 = 41.185, -8.705
 FRAME = LocalFrame(LAT0, LON0)

@@ -25,14 +25,14 @@ from typing import Any
 import pytest
 
 from drivers.nmea import format_sentence
+from zarco_core.geodesy import LocalFrame
+from zarco_core.messages import FixQuality, GpsFix, GpsTime, Heading, RateOfTurn
 from zarco_runtime.cli import main
-from zarco_runtime.decode import Rejected, decode_lines
-from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import FixQuality, GpsFix, GpsTime, Heading, RateOfTurn
-from zarco_runtime.navigation import capture_report as cr
-from zarco_runtime.navigation.capture_report import capture_report, read_capture
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
+from zarco_tools import capture_report as cr
+from zarco_tools.capture_report import capture_report, read_capture
+from zarco_tools.decode import Rejected, decode_lines
 
 LOGS = Path(__file__).resolve().parent / "data" / "gpsd-logs"
 HEMI = LOGS / "hemi.log"

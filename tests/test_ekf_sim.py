@@ -1,7 +1,7 @@
 """Navigation EKF against the simulator's truth (issue 5 figures at CI size).
 
 Every run drives :class:`drivers.sim.world.SimWorld` through the real NMEA
-framer and parsers (``zarco_runtime.navigation.ekf_eval``); the boat follows the
+framer and parsers (``zarco_tools.ekf_eval``); the boat follows the
 paper's 100 m × 50 m rectangle at 1 m/s (or a shorter path) with a line-of-sight
 pilot reading the truth, with the gusts of config/scenarios/rectangle.toml.
 One seeded run is about 1.5 s.
@@ -17,8 +17,8 @@ from typing import Any
 
 import pytest
 
-from zarco_runtime.messages import FixQuality, GpsFix, Heading
-from zarco_runtime.navigation.ekf_eval import (
+from zarco_core.messages import FixQuality, GpsFix, Heading
+from zarco_tools.ekf_eval import (
     JUMP_AT_S,
     OUTAGE_START_S,
     Case,

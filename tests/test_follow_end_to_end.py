@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from zarco_runtime.scenario import load_scenario
-from zarco_runtime.simulation import run_scenario
+from zarco_tools.scenario import load_scenario
+from zarco_tools.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 TURN = ROOT / "config" / "scenarios" / "follow_turn.toml"
@@ -50,7 +50,7 @@ def test_tracker_counted_what_it_dropped(report: dict) -> None:
 
 
 def test_a_bad_follow_scenario_is_refused(tmp_path: Path) -> None:
-    from zarco_runtime.config import ConfigError
+    from zarco_core.config import ConfigError
 
     p = tmp_path / "f.toml"
     p.write_text("[mission]\nkind = \"follow\"\n")

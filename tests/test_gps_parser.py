@@ -24,7 +24,7 @@ import pytest
 
 from drivers.gps_parser import KNOT_MPS, fix_from_gga_quality, parse_gps
 from drivers.nmea import NmeaError, format_sentence
-from zarco_runtime.messages import (
+from zarco_core.messages import (
     FixQuality,
     GpsErrorStats,
     GpsFix,

@@ -16,9 +16,9 @@ from hil.ptys import PtyPort
 from hil.run import clean_legs, pooled_rms, runtime_config, toml_dumps
 from hil.runtime_log import RuntimeLog
 from hil.scenario import load_hil_scenario
-from zarco_runtime.config import ConfigError, build
-from zarco_runtime.scenario import load_runtime_config
-from zarco_runtime.sim_report import TrackLog
+from zarco_core.config import ConfigError, build
+from zarco_tools.scenario import load_runtime_config
+from zarco_tools.sim_report import TrackLog
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "hil" / "scenarios" / "line_faults.toml"

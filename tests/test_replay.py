@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from drivers.nmea import format_sentence
-from zarco_runtime.replay import build_schedule, play, sentence_time
+from zarco_tools.replay import build_schedule, play, sentence_time
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data" / "gpsd-logs"

@@ -10,10 +10,10 @@ from pathlib import Path
 
 from drivers.gps_parser import parse_gps
 from drivers.nmea_device import NmeaDevice
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
-from zarco_runtime.messages import DeviceHealth, GpsFix, HealthState
-from zarco_runtime.settings import Device
+from drivers.settings import Device
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.messages import DeviceHealth, GpsFix, HealthState
 
 LOG = Path(__file__).parent / "data" / "gpsd-logs" / "nmea-rtk.log"
 

@@ -12,7 +12,7 @@ from drivers.buoy_parser import parse_buoy
 from drivers.nmea import NmeaFramer
 from drivers.sim.acoustics import AcousticWorld, LblParams
 from drivers.sim.auv import Auv, AuvParams
-from zarco_runtime.tracking.messages import AcousticEvent, AuvFix, BuoyStatus
+from zarco_core.auv_messages import AcousticEvent, AuvFix, BuoyStatus
 from zarco_runtime.tracking.params import TrackerParams
 from zarco_runtime.tracking.tracker import AuvTracker
 
@@ -197,7 +197,7 @@ def test_auv_lines_on_the_fly() -> None:
 def test_parameters_are_a_config_schema() -> None:
     """AuvParams, LblParams and TrackerParams load from scenario tables, and a bad
     value names the file and the dotted key."""
-    from zarco_runtime.config import ConfigError, build
+    from zarco_core.config import ConfigError, build
 
     lbl = build(LblParams, {"p_miss": 0.2, "sequence": [1, 3, 2],
                             "beacons": [[0, 0, 30], [400, 50, 30], [150, 400, 30]]},

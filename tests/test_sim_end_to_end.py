@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from zarco_runtime.cli import main
-from zarco_runtime.scenario import load_scenario
-from zarco_runtime.simulation import run_scenario
+from zarco_tools.scenario import load_scenario
+from zarco_tools.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 RECT = ROOT / "config" / "scenarios" / "rectangle.toml"

@@ -8,7 +8,7 @@ import pytest
 
 from drivers.nmea import NmeaError, NmeaFramer, format_sentence
 from drivers.thruster_protocol import encode_pzthr, encode_pzths, parse_pzthr, parse_pzths
-from zarco_runtime.messages import ThrusterStatus
+from zarco_core.messages import ThrusterStatus
 
 
 def line(b: bytes) -> str:

@@ -6,9 +6,10 @@ import math
 
 import pytest
 
+from zarco_core.auv_messages import AcousticEvent
+from zarco_core.lbl import LblNetworkParams
 from zarco_runtime.tracking.cycles import CycleAssembler
-from zarco_runtime.tracking.messages import AcousticEvent
-from zarco_runtime.tracking.params import LblNetworkParams, Network
+from zarco_runtime.tracking.params import Network
 
 EPOCH = 1_780_308_000.0  # 2026-06-01T10:00:00Z
 C = 1500.0

@@ -8,6 +8,8 @@ import pytest
 
 from drivers.sim.acoustics import AcousticWorld, LblParams
 from drivers.sim.auv import Auv, AuvParams
+from zarco_core.auv_messages import AuvFix, AuvTrack
+from zarco_core.lbl import LblNetworkParams
 from zarco_runtime.tracking.cycles import Cycle
 from zarco_runtime.tracking.fix import (
     circle_fix,
@@ -15,8 +17,7 @@ from zarco_runtime.tracking.fix import (
     motion_bias,
     range_variances,
 )
-from zarco_runtime.tracking.messages import AuvFix, AuvTrack
-from zarco_runtime.tracking.params import LblNetworkParams, Network, TrackerParams
+from zarco_runtime.tracking.params import Network, TrackerParams
 from zarco_runtime.tracking.tracker import AuvTracker
 
 EPOCH = 1_780_308_000.0  # 2026-06-01T10:00:00Z: epoch-sized times throughout

@@ -11,7 +11,7 @@ import pytest
 
 from drivers.sim.acoustics import AcousticWorld, LblParams
 from drivers.sim.auv import Auv, AuvParams
-from zarco_runtime.tracking.messages import AcousticEvent, AuvTrack, TrackFlags
+from zarco_core.auv_messages import AcousticEvent, AuvTrack, TrackFlags
 from zarco_runtime.tracking.params import TrackerParams
 from zarco_runtime.tracking.tracker import AuvTracker
 

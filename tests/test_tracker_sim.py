@@ -19,7 +19,7 @@ from drivers.buoy_parser import parse_buoy
 from drivers.nmea import NmeaFramer
 from drivers.sim.acoustics import AcousticWorld, LblParams
 from drivers.sim.auv import Auv, AuvParams
-from zarco_runtime.tracking.messages import AcousticEvent, AuvFix, AuvTrack
+from zarco_core.auv_messages import AcousticEvent, AuvFix, AuvTrack
 from zarco_runtime.tracking.params import TrackerParams
 from zarco_runtime.tracking.tracker import AuvTracker
 

@@ -1,6 +1,12 @@
-"""``zarco`` command line: ``sim`` (virtual clock), ``run`` (the boat), ``navreport``
-(the navigation EKF over NMEA captures); ``hil``, ``replay``, ``decode`` come from
-:mod:`hil.cli`."""
+"""``zarco`` command line.
+
+``zarco run`` (the boat) is built in.  Every other sub-command (``sim``,
+``hil``, ``decode``, ``replay``, ``navreport``, ...) belongs to a package that
+stands beside the onboard runtime (the simulator, HIL, evaluation tools) and
+is found through the ``zarco.commands`` entry points, loaded only when one of
+them is asked for: ``zarco run`` never imports the simulator, HIL, plotting
+or evaluation code.
+"""
 
 from __future__ import annotations
 
@@ -13,95 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from zarco_runtime.config import ConfigError
-
-
-def _fmt(v: Any, unit: str = "m") -> str:
-    return f"{v:.3f} {unit}" if isinstance(v, (int, float)) else str(v)
-
-
-def follow_summary(report: dict[str, Any]) -> str:
-    """One screen of a follow-the-AUV run."""
-    lines = [
-        f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
-        f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "
-        f"= {report['speedup']:.0f}× real time",
-        f"passive fixes: {report['fixes']}, median interval {report['fix_interval_s']:.2f} s, "
-        f"error RMS {_fmt(report['fix_error_rms_m'])}; track error RMS "
-        f"{_fmt(report['track_error_rms_m'])}",
-        f"AUV course error RMS (straight legs) {report['course_error_rms_deg']:.2f}°",
-        f"ASV–AUV distance: median {_fmt(report['distance_median_m'])}  "
-        f"p95 {_fmt(report['distance_p95_m'])}  max {_fmt(report['distance_max_m'])}",
-        f"track lost {report['track_lost_events']} times",
-        "",
-        " turn at   detect   recovery   max distance",
-    ]
-    for tr in report["turns"]:
-        lines.append(f" {tr['t_s']:7.1f}  {tr['detect_s']:6.1f} s  {tr['recovery_s']:6.1f} s  "
-                     f"{tr['distance_max_m']:7.2f} m")
-    return "\n".join(lines)
-
-
-def summary(report: dict[str, Any]) -> str:
-    """One screen of headline figures."""
-    if "xtrack_rms_m" not in report:
-        return follow_summary(report)
-    lines = [
-        f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
-        f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "
-        f"= {report['speedup']:.0f}× real time",
-        f"cross-track (≥15 m into each leg): RMS {_fmt(report['xtrack_rms_m'])}  "
-        f"p95 {_fmt(report['xtrack_p95_m'])}  max {_fmt(report['xtrack_max_m'])}",
-        f"corner overshoot max {_fmt(report['corner_overshoot_max_m'])} "
-        f"(outside the turn {_fmt(report['corner_overshoot_outside_max_m'])})   "
-        f"thrusters saturated {100 * report['saturation_fraction']:.1f} % of ticks, "
-        f"command steps {report['command_step_rms']:.1f} % RMS",
-        "",
-        " leg  speed    RMS      p95      max    overshoot",
-    ]
-    for leg in report["legs"]:
-        lines.append(
-            f" {leg['leg']:3d}  {leg['speed_mps']:4.2f}  {leg['xtrack_rms_m']:7.3f}  "
-            f"{leg['xtrack_p95_m']:7.3f}  {leg['xtrack_max_m']:7.3f}  {leg['overshoot_m']:7.2f}"
-        )
-    if report.get("faults"):
-        lines.append("")
-        lines.append("faults: " + "; ".join(report["faults"]))
-    return "\n".join(lines)
-
-
-def cmd_sim(args: argparse.Namespace) -> int:
-    from zarco_runtime.scenario import load_scenario
-    from zarco_runtime.simulation import StatusLine, run_scenario
-
-    scn = load_scenario(args.scenario, args.set, args.seed)
-    status = None if args.quiet else StatusLine()
-    try:
-        res = run_scenario(scn, progress=status)
-    finally:
-        if status is not None:
-            status.close()
-    if args.report:
-        Path(args.report).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.report).write_text(json.dumps(res.report, indent=2) + "\n")
-    if args.plot:
-        from zarco_runtime.plot import plot_follow, plot_lines
-
-        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
-        if scn.mission.kind == "follow":
-            plot_follow(args.plot, res.log, res.extra,
-                        f"{scn.scenario.name}: seed {scn.scenario.seed}, distance median "
-                        f"{res.report['distance_median_m']:.2f} m")
-        else:
-            plot_lines(args.plot, res.log, res.legs,
-                       f"{scn.scenario.name}: seed {scn.scenario.seed}, "
-                       f"RMS {res.report['xtrack_rms_m']:.3f} m")
-    print(summary(res.report))
-    if args.report:
-        print(f"\nreport: {args.report}")
-    if args.plot:
-        print(f"plot:   {args.plot}")
-    return 0
+from zarco_core.config import ConfigError
 
 
 def _status_file(path: str, runtime: Any) -> Any:
@@ -110,7 +28,7 @@ def _status_file(path: str, runtime: Any) -> Any:
     counters on exit.  Returns the function that writes the final line."""
     import time
 
-    from zarco_runtime.messages import DeviceHealth
+    from zarco_core.messages import DeviceHealth
 
     fh = Path(path).open("a", buffering=1)  # noqa: SIM115 (closed by final())
     last: dict[str, tuple[str, str]] = {}
@@ -140,10 +58,10 @@ def _status_file(path: str, runtime: Any) -> Any:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from zarco_runtime.geodesy import LocalFrame
+    from zarco_core.geodesy import LocalFrame
+    from zarco_runtime.config_file import load_runtime_config
     from zarco_runtime.guidance.mission import build_legs
     from zarco_runtime.runtime import Runtime
-    from zarco_runtime.scenario import load_runtime_config
 
     cfg, mission = load_runtime_config(args.config, args.set)
     o = cfg.origin
@@ -169,36 +87,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _positive_hz(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (v > 0.0 and v != float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return v
-
-
-def cmd_navreport(args: argparse.Namespace) -> int:
-    from zarco_runtime.navigation.capture_report import main_navreport
-
-    return main_navreport(args.logs, args.variation, args.line_rate)
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="zarco", description="Zarco ASV runtime")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = p.add_subparsers(dest="command", required=True)
-
-    s = sub.add_parser("sim", help="simulate a scenario on the virtual clock")
-    s.add_argument("scenario", help="scenario TOML file")
-    s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario key by dotted path (repeatable)")
-    s.add_argument("--seed", type=int, default=None, help="random seed (overrides the file)")
-    s.add_argument("--report", metavar="FILE.json", help="write the JSON report here")
-    s.add_argument("--plot", metavar="FILE.png", help="write the track/cross-track plot here")
-    s.add_argument("-q", "--quiet", action="store_true", help="no running status")
-    s.set_defaults(func=cmd_sim)
 
     r = sub.add_parser("run", help="run on the vessel (real devices)")
     r.add_argument("--config", required=True, help="runtime TOML (config/zarco.toml)")
@@ -207,30 +99,29 @@ def build_parser() -> argparse.ArgumentParser:
                    "(JSON lines, with counters) here, and every device's counters on exit")
     r.set_defaults(func=cmd_run)
 
-    n = sub.add_parser(
-        "navreport", help="run the navigation EKF over NMEA captures and report its estimate",
-        description="Feed each capture through the drivers' parsers into the navigation EKF "
-                    "(timed by the capture's UTC, else at --line-rate) and report what it "
-                    "estimated: a table per capture on stderr, then one JSON line (a dict "
-                    "keyed by file) on stdout. Lines starting with # are skipped. Exit 0: "
-                    "no EKF error; 1: some EKF error; 2: a file could not be read.")
-    n.add_argument("logs", nargs="+", metavar="LOG", help="NMEA capture file(s)")
-    n.add_argument("--variation", type=float, default=None, metavar="DEG",
-                   help="magnetic variation (east +) for magnetic headings that carry none "
-                        "(HDM; an HDG's own variation wins); without it they stay magnetic "
-                        "and the report says so")
-    n.add_argument("--line-rate", type=_positive_hz, default=5.0, metavar="HZ",
-                   help="sentences per second for a capture without UTC times (default 5)")
-    n.set_defaults(func=cmd_navreport)
-
-    from hil.cli import register
-
-    register(sub)
+    for ep in _tool_commands(argv):
+        ep.load()(sub)
     return p
 
 
+#: sub-commands of this module; any other comes from a ``zarco.commands`` entry point
+BUILTIN = ("run",)
+
+
+def _tool_commands(argv: list[str] | None) -> list[Any]:
+    """The ``zarco.commands`` entry points to load for ``argv``: none for a built-in
+    sub-command, else all of them (``zarco --help`` lists every command)."""
+    args = sys.argv[1:] if argv is None else argv
+    words = [a for a in args if not a.startswith("-")]
+    if words and words[0] in BUILTIN:
+        return []
+    from importlib.metadata import entry_points
+
+    return sorted(entry_points(group="zarco.commands"), key=lambda e: e.name)
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser(argv).parse_args(argv)
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.WARNING,
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",

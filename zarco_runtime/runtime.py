@@ -18,9 +18,9 @@ from drivers.compass_parser import parse_compass
 from drivers.gps_parser import parse_gps
 from drivers.nmea_device import NmeaDevice
 from drivers.thruster_driver import ThrusterDriver
-from drivers.transports import SimPorts
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
+from drivers.transports import Ports
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
 from zarco_runtime.control.task import ControlTask
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.navigation.task import Navigation
@@ -34,7 +34,7 @@ class Runtime:
     """Builds every task from a validated configuration (nothing starts on error)."""
 
     def __init__(self, cfg: RuntimeConfig, legs: list[Leg], bus: Bus | None = None,
-                 clock: Clock | None = None, sim: SimPorts | None = None,
+                 clock: Clock | None = None, ports: Ports | None = None,
                  mode: str = "lines") -> None:
         self.cfg = cfg
         self.bus = bus or Bus()
@@ -44,20 +44,20 @@ class Runtime:
         cmp_var = dev.compass.variation_deg
         self.gps = NmeaDevice(
             "gps", dev.gps, self.bus, self.clock,
-            lambda line, t: parse_gps(line, t, "gps", gps_var), sim,
+            lambda line, t: parse_gps(line, t, "gps", gps_var), ports,
         )
         self.compass = NmeaDevice(
             "compass", dev.compass, self.bus, self.clock,
-            lambda line, t: parse_compass(line, t, "compass", cmp_var), sim,
+            lambda line, t: parse_compass(line, t, "compass", cmp_var), ports,
         )
-        self.thrusters = ThrusterDriver(dev.thrusters, self.bus, self.clock, sim)
+        self.thrusters = ThrusterDriver(dev.thrusters, self.bus, self.clock, ports)
         self.navigation = Navigation(cfg, self.bus, self.clock)
         self.control = ControlTask(cfg, self.bus, self.clock, legs, mode)
         self.buoy: NmeaDevice | None = None
         self.tracking: Tracking | None = None
         if dev.buoy.enabled:
             self.buoy = NmeaDevice("buoy", dev.buoy, self.bus, self.clock,
-                                   lambda line, t: parse_buoy(line, t, "buoy"), sim)
+                                   lambda line, t: parse_buoy(line, t, "buoy"), ports)
             self.tracking = Tracking(cfg.tracker, self.bus, self.clock)
 
     def tasks(self) -> list[tuple[str, Callable[[], object]]]:

@@ -46,9 +46,9 @@ from drivers.buoy_parser import encode_pzbae, encode_pzbst
 from drivers.sim.auv import Auv, AuvTruth
 from drivers.sim.disturbance import BLOCK, NormalStream
 from drivers.sim.sensors import NedToGeodetic
-from zarco_runtime.config import spec
-from zarco_runtime.tracking.messages import AcousticEvent
-from zarco_runtime.tracking.params import LblNetworkParams
+from zarco_core.auv_messages import AcousticEvent
+from zarco_core.config import spec
+from zarco_core.lbl import LblNetworkParams
 
 #: child random streams, by index: never reorder, only append
 STREAMS = ("detect", "jitter", "multipath", "false_detection", "snr", "auv_miss", "status")

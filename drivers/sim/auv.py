@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zarco_runtime.config import spec
+from zarco_core.config import spec
 
 #: ``at_end`` behaviours
 AT_END = ("stop", "continue")

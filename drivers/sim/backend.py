@@ -18,10 +18,11 @@ from collections.abc import Callable
 
 from drivers.nmea import NmeaError, NmeaFramer
 from drivers.sim.acoustics import AcousticWorld
+from drivers.sim.ports import SimPorts
 from drivers.sim.world import SimWorld
 from drivers.thruster_protocol import parse_pzthr
-from drivers.transports import MemoryTransport, SimPorts
-from zarco_runtime.clock import Clock
+from drivers.transports import MemoryTransport
+from zarco_core.clock import Clock
 
 #: rate of $PZTHS status from the simulated thruster controller (Hz)
 STATUS_RATE_HZ = 5.0

@@ -37,7 +37,7 @@ acts on one device from ``at_s`` (seconds after the run starts) for
 ========================  ================================================================
 
 The dataclass follows the configuration conventions of
-``zarco_runtime.config`` (``spec`` fields with unit, doc and range; a
+``zarco_core.config`` (``spec`` fields with unit, doc and range; a
 ``validate`` for checks across fields).  :class:`FaultPlan` is pure and
 seeded: the simulator asks it, at each write, what the device really sends.
 """
@@ -48,7 +48,7 @@ import random
 from dataclasses import dataclass
 
 from drivers.sim.params import FIX_MODES
-from zarco_runtime.config import spec
+from zarco_core.config import spec
 
 FAULT_KINDS = ("unplug", "noise", "truncate", "bad_checksum", "split", "silence", "fix",
                "freeze")

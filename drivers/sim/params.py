@@ -1,5 +1,5 @@
 """Parameters of the simulated world; these dataclasses are also the ``[world]``
-schema of scenario files (``zarco_runtime.config`` walks them).
+schema of scenario files (``zarco_core.config`` walks them).
 
 Conventions (shared with ``zarco_runtime.settings``):
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from zarco_runtime.config import spec
+from zarco_core.config import spec
 
 #: GPS fix modes a scenario may ask for (DESIGN.md §4 sensor noise)
 FIX_MODES = ("none", "single", "dgps", "rtk_float", "rtk_fixed")
@@ -49,7 +49,7 @@ def _md(unit: str, doc: str, *, lo: float | None = None, hi: float | None = None
 
 def _p(default: float | int | bool | str, unit: str, doc: str, *, lo: float | None = None,
        hi: float | None = None, choices: list[str] | None = None) -> Any:
-    """A scalar field with a default and config metadata (:func:`zarco_runtime.config.spec`)."""
+    """A scalar field with a default and config metadata (:func:`zarco_core.config.spec`)."""
     return spec(default, unit, doc, **{k: v for k, v in
                                        (("min", lo), ("max", hi), ("choices", choices))
                                        if v is not None})

@@ -25,7 +25,7 @@ from drivers.nmea import format_sentence
 from drivers.sim.disturbance import GaussMarkov, NormalStream
 from drivers.sim.params import FIX_MODES, CompassParams, GpsParams, ThrusterParams
 from drivers.sim.thruster_model import U_MAX
-from zarco_runtime.navigation.localgeo import FastLocalFrame
+from zarco_core.localgeo import FastLocalFrame
 
 #: metres per second in one knot (1852 m per hour)
 KNOT_MPS = 1852.0 / 3600.0
@@ -87,7 +87,7 @@ def _wrap360(deg: float, decimals: int) -> str:
 class NedToGeodetic(FastLocalFrame):
     """Local NED (m) about a geodetic origin → WGS-84 latitude/longitude (deg),
     as a callable: the runtime's plain-math local frame
-    (:class:`zarco_runtime.navigation.localgeo.FastLocalFrame`, checked against
+    (:class:`zarco_core.localgeo.FastLocalFrame`, checked against
     pymap3d in the tests), which costs a few µs where pymap3d costs ~120."""
 
     __slots__ = ()

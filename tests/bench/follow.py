@@ -25,9 +25,9 @@ sys.path.insert(0, str(ROOT))
 
 from drivers.sim.acoustics import AcousticWorld  # noqa: E402
 from drivers.sim.auv import Auv  # noqa: E402
-from zarco_runtime.scenario import load_scenario  # noqa: E402
-from zarco_runtime.simulation import run_scenario  # noqa: E402
 from zarco_runtime.tracking.tracker import AuvTracker  # noqa: E402
+from zarco_tools.scenario import load_scenario  # noqa: E402
+from zarco_tools.simulation import run_scenario  # noqa: E402
 
 SCN = ROOT / "config" / "scenarios"
 HARSH = ["lbl.p_miss=0.20", "lbl.p_false=0.05"]

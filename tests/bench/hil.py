@@ -43,7 +43,7 @@ sys.path[:] = [str(ROOT)] + [p for p in sys.path if p != str(ROOT)]
 
 from hil.run import pooled_rms, run_hil, summary  # noqa: E402
 from hil.scenario import load_hil_scenario  # noqa: E402
-from zarco_runtime.simulation import run_scenario  # noqa: E402
+from zarco_tools.simulation import run_scenario  # noqa: E402
 
 SCENARIO = ROOT / "hil" / "scenarios" / "rectangle_faults.toml"
 
@@ -128,7 +128,7 @@ def main() -> None:
         Path(args.report).parent.mkdir(parents=True, exist_ok=True)
         Path(args.report).write_text(json.dumps(rep, indent=2) + "\n")
     if args.plot:
-        from zarco_runtime.plot import plot_lines
+        from zarco_tools.plot import plot_lines
 
         Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
         plot_lines(args.plot, res.log, res.legs, f"{rep['scenario']} (HIL): seed {rep['seed']}")

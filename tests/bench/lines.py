@@ -26,8 +26,8 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from zarco_runtime.scenario import load_scenario  # noqa: E402
-from zarco_runtime.simulation import run_scenario  # noqa: E402
+from zarco_tools.scenario import load_scenario  # noqa: E402
+from zarco_tools.simulation import run_scenario  # noqa: E402
 
 RECT = ROOT / "config" / "scenarios" / "rectangle.toml"
 SPEEDS = (0.5, 1.0, 1.5)

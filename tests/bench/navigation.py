@@ -2,7 +2,7 @@
 
     python tests/bench/navigation.py [--seeds 1 2 3] [--quick]
 
-Estimator figures come from ``zarco_runtime.navigation.ekf_eval`` (the
+Estimator figures come from ``zarco_tools.ekf_eval`` (the
 simulated world's NMEA bytes through the real parsers into the EKF, with a
 line-of-sight pilot); line holding is measured with the whole runtime on the
 rectangle at 1 m/s (current 0.2 m/s, compass bias 1°, thruster misalignment),
@@ -23,10 +23,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from zarco_runtime.navigation.capture_report import capture_report  # noqa: E402
-from zarco_runtime.navigation.ekf_eval import figures  # noqa: E402
-from zarco_runtime.scenario import load_scenario  # noqa: E402
-from zarco_runtime.simulation import run_scenario  # noqa: E402
+from zarco_tools.capture_report import capture_report  # noqa: E402
+from zarco_tools.ekf_eval import figures  # noqa: E402
+from zarco_tools.scenario import load_scenario  # noqa: E402
+from zarco_tools.simulation import run_scenario  # noqa: E402
 
 RECT = ROOT / "config" / "scenarios" / "rectangle.toml"
 LOGS = ROOT / "tests" / "data" / "gpsd-logs"

@@ -27,12 +27,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zarco_runtime.angles import wrap
+from zarco_core.angles import wrap
+from zarco_core.messages import NavState
 from zarco_runtime.control.allocation import Allocation
 from zarco_runtime.control.lqr import GainSchedule
+from zarco_runtime.control.settings import Control, VesselModel, xtrack_rate_tau_s
 from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.messages import NavState
-from zarco_runtime.settings import Control, VesselModel, xtrack_rate_tau_s
 
 
 class CurrentObserver:

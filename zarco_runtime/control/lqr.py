@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zarco_runtime.settings import Control, VesselModel
+from zarco_runtime.control.settings import Control, VesselModel
 
 STATE = ("d", "l", "e", "r", "v", "nt")
 

@@ -17,16 +17,12 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+from typing import TYPE_CHECKING
 
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
-from zarco_runtime.control.allocation import ZERO, Allocation, allocate
-from zarco_runtime.control.line_tracking import Demand, LineController
-from zarco_runtime.control.thruster_map import ThrusterMap
-from zarco_runtime.guidance.follow import FollowGuidance
-from zarco_runtime.guidance.lines import LineGuidance
-from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.messages import (
+from zarco_core.auv_messages import AuvTrack
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.messages import (
     ControlStatus,
     Fault,
     GuidanceStatus,
@@ -34,8 +30,16 @@ from zarco_runtime.messages import (
     ThrusterCommand,
     ThrusterStatus,
 )
-from zarco_runtime.settings import RuntimeConfig, xtrack_rate_tau_s
-from zarco_runtime.tracking.messages import AuvTrack
+from zarco_runtime.control.allocation import ZERO, Allocation, allocate
+from zarco_runtime.control.line_tracking import Demand, LineController
+from zarco_runtime.control.settings import xtrack_rate_tau_s
+from zarco_runtime.control.thruster_map import ThrusterMap
+from zarco_runtime.guidance.follow import FollowGuidance
+from zarco_runtime.guidance.lines import LineGuidance
+from zarco_runtime.guidance.mission import Leg
+
+if TYPE_CHECKING:
+    from zarco_runtime.settings import RuntimeConfig
 
 log = logging.getLogger("zarco.control")
 #: histogram of the control period jitter |period − dt|: JITTER_BINS bins of

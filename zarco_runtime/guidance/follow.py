@@ -17,10 +17,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zarco_runtime.config import spec
+from zarco_core.auv_messages import AuvTrack, TrackFlags
+from zarco_core.config import spec
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.tracking.follow import follow_geometry
-from zarco_runtime.tracking.messages import AuvTrack, TrackFlags
 
 #: half-length of the virtual leg laid along the AUV's line (m)
 VIRTUAL_HALF_LENGTH_M = 10_000.0

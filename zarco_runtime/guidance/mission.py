@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zarco_runtime.config import spec
-from zarco_runtime.geodesy import LocalFrame
+from zarco_core.config import spec
+from zarco_core.geodesy import LocalFrame
 
 
 @dataclass(slots=True)

@@ -146,9 +146,10 @@ from typing import Any
 
 import numpy as np
 
-from zarco_runtime.angles import wrap
-from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import (
+from zarco_core.angles import wrap
+from zarco_core.geodesy import LocalFrame
+from zarco_core.localgeo import FastLocalFrame
+from zarco_core.messages import (
     FixQuality,
     GpsErrorStats,
     GpsFix,
@@ -158,7 +159,6 @@ from zarco_runtime.messages import (
     RateOfTurn,
 )
 from zarco_runtime.navigation.ekf_config import EkfSettings
-from zarco_runtime.navigation.localgeo import FastLocalFrame
 
 # state indices
 IX, IY, IU, IV, IPSI, IR, IBG, IBC, ICN, ICE, IBN, IBE = range(12)
@@ -300,7 +300,7 @@ class EkfNavigator:
     """GPS + GST + true heading + compass + gyro → NavState, by an EKF in local NED.
 
     ``frame`` is the local NED frame (its origin is used through the scalar
-    :class:`~zarco_runtime.navigation.localgeo.FastLocalFrame`);
+    :class:`~zarco_core.localgeo.FastLocalFrame`);
     ``variation_deg`` (east positive) is added to headings that arrive magnetic
     (``Heading.true`` false), as :class:`SimpleNavigator` does.
     """

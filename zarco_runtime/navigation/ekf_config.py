@@ -1,7 +1,7 @@
 """Settings of the navigation EKF (:mod:`zarco_runtime.navigation.ekf`).
 
 Same conventions as :mod:`zarco_runtime.settings`: every field carries its
-unit, its doc and its range; :func:`zarco_runtime.config.build` validates a
+unit, its doc and its range; :func:`zarco_core.config.build` validates a
 TOML table against this dataclass (the lead hooks it in as
 ``[navigation.ekf]`` or similar).  Angles are degrees at this edge (``_deg``,
 ``_dps`` in the names), the filter converts to radians.  Defaults are the Zarco
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from zarco_runtime.config import spec
+from zarco_core.config import spec
 
 FIX_CHOICES = ["single", "dgps", "rtk_float", "rtk_fixed"]
 

@@ -15,9 +15,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zarco_runtime.angles import wrap
-from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import (
+from zarco_core.angles import wrap
+from zarco_core.geodesy import LocalFrame
+from zarco_core.localgeo import FastLocalFrame
+from zarco_core.messages import (
     FixQuality,
     GpsFix,
     GpsVelocity,
@@ -25,8 +26,7 @@ from zarco_runtime.messages import (
     NavState,
     RateOfTurn,
 )
-from zarco_runtime.navigation.localgeo import FastLocalFrame
-from zarco_runtime.settings import Navigation
+from zarco_runtime.navigation.settings import Navigation
 
 #: 1σ horizontal position noise assumed per fix type (m), from DESIGN.md §4.
 FIX_SIGMA_M = {

@@ -7,13 +7,17 @@ the controller with no scheduling delay) and publishes the updated NavState.
 
 from __future__ import annotations
 
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
-from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import GpsErrorStats, GpsFix, GpsVelocity, Heading, RateOfTurn
+from typing import TYPE_CHECKING
+
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.geodesy import LocalFrame
+from zarco_core.messages import GpsErrorStats, GpsFix, GpsVelocity, Heading, RateOfTurn
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.simple import SimpleNavigator
-from zarco_runtime.settings import RuntimeConfig
+
+if TYPE_CHECKING:
+    from zarco_runtime.settings import RuntimeConfig
 
 
 class Navigation:

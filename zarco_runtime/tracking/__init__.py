@@ -2,8 +2,8 @@
 
 Pure, deterministic, synchronous code: no I/O, no asyncio, no clocks.  The
 runtime feeds :class:`~zarco_runtime.tracking.tracker.AuvTracker` with
-:class:`~zarco_runtime.tracking.messages.AcousticEvent` messages and
-publishes the :class:`~zarco_runtime.tracking.messages.AuvTrack` it returns.
+:class:`~zarco_core.auv_messages.AcousticEvent` messages and
+publishes the :class:`~zarco_core.auv_messages.AuvTrack` it returns.
 
 Modules, in data-flow order:
 

@@ -128,7 +128,7 @@ class CycleAssembler:
             self._last_utc = -math.inf
 
     def push(self, ev: Any) -> Cycle | None:
-        """Take one :class:`~zarco_runtime.tracking.messages.AcousticEvent`; return
+        """Take one :class:`~zarco_core.auv_messages.AcousticEvent`; return
         the cycle it completes, if any.  Never raises: anything unusable is
         counted in :attr:`dropped` / :attr:`cycles_dropped`."""
         try:

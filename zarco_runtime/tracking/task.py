@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import asyncio
 
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock
-from zarco_runtime.tracking.messages import AcousticEvent, BuoyStatus
+from zarco_core.auv_messages import AcousticEvent, BuoyStatus
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
 from zarco_runtime.tracking.params import TrackerParams
 from zarco_runtime.tracking.tracker import AuvTracker
 

@@ -56,6 +56,7 @@ import math
 from collections import Counter, deque
 from typing import Any
 
+from zarco_core.auv_messages import AuvFix, AuvTrack, BuoyStatus, TrackFlags
 from zarco_runtime.tracking.cycles import Cycle, CycleAssembler
 from zarco_runtime.tracking.fix import (
     CircleFix,
@@ -67,7 +68,6 @@ from zarco_runtime.tracking.fix import (
     range_variances,
 )
 from zarco_runtime.tracking.kalman import CvKalman
-from zarco_runtime.tracking.messages import AuvFix, AuvTrack, BuoyStatus, TrackFlags
 from zarco_runtime.tracking.params import Network, TrackerParams
 from zarco_runtime.tracking.rls import LineRls
 
@@ -95,7 +95,7 @@ class _InitEntry:
 
 class AuvTracker:
     """Passive LBL tracker of one AUV.  Feed :meth:`on_event` (or :meth:`process`)
-    with every :class:`~zarco_runtime.tracking.messages.AcousticEvent` in arrival
+    with every :class:`~zarco_core.auv_messages.AcousticEvent` in arrival
     order and call :meth:`tick` periodically; nothing here raises."""
 
     def __init__(self, params: TrackerParams) -> None:

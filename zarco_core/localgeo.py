@@ -1,6 +1,6 @@
 """Fast WGS-84 geodetic ↔ local NED conversions in plain ``math``.
 
-:class:`zarco_runtime.geodesy.LocalFrame` goes through pymap3d, which
+:class:`zarco_core.geodesy.LocalFrame` goes through pymap3d, which
 evaluates the transformation with numpy ufuncs on scalars at about 100 µs a
 call: more than the navigation filter's whole update budget.  This module does
 the same transformation (geodetic → ECEF → NED about the origin, and back with

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.sim_report import SETTLE_M, TrackLog, xtrack_series
+from zarco_tools.sim_report import SETTLE_M, TrackLog, xtrack_series
 
 
 def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str) -> None:
@@ -62,7 +62,7 @@ def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str) -> Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from zarco_runtime.tracking.messages import AuvFix, AuvTrack, TrackFlags
+    from zarco_core.auv_messages import AuvFix, AuvTrack, TrackFlags
 
     auv = extra.get("auv_log", [])
     msgs = extra.get("auv_msgs", [])

@@ -2,7 +2,20 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import pymap3d
+
+from zarco_core.config import spec
+
+
+@dataclass(slots=True)
+class Origin:
+    """Geodetic origin of the local NED frame (WGS-84)."""
+
+    lat_deg: float = spec(41.185, "deg", "origin latitude", min=-90.0, max=90.0)
+    lon_deg: float = spec(-8.705, "deg", "origin longitude", min=-180.0, max=180.0)
+    alt_m: float = spec(0.0, "m", "origin height", min=-500.0, max=9000.0)
 
 
 class LocalFrame:

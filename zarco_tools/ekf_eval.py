@@ -1,6 +1,6 @@
 """Evaluate the navigation EKF against the simulator's truth (issue 5 figures).
 
-    python -m zarco_runtime.navigation.ekf_eval [--seeds 1 2 3] [--quick]
+    python -m zarco_tools.ekf_eval [--seeds 1 2 3] [--quick]
 
 Drives :class:`drivers.sim.world.SimWorld` directly (no runtime, no clock):
 every NMEA byte the simulated GPS and compass emit goes through the real
@@ -53,8 +53,8 @@ from drivers.gps_parser import parse_gps
 from drivers.nmea import NmeaError, NmeaFramer
 from drivers.sim.params import WorldParams
 from drivers.sim.world import SimWorld
+from zarco_core.geodesy import LocalFrame
 from zarco_runtime.control.thruster_map import ThrusterMap
-from zarco_runtime.geodesy import LocalFrame
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.settings import DEFAULT_TABLE_F, DEFAULT_TABLE_U

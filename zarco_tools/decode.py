@@ -47,7 +47,7 @@ from drivers.compass_parser import COMPASS_HANDLERS, parse_compass
 from drivers.gps_parser import GPS_HANDLERS, parse_gps
 from drivers.nmea import NmeaError, NmeaFramer, sentence_type
 from drivers.thruster_protocol import parse_pzthr, parse_pzths
-from zarco_runtime.messages import (
+from zarco_core.messages import (
     Attitude,
     GpsErrorStats,
     GpsFix,

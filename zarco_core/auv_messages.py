@@ -1,4 +1,4 @@
-"""Messages of the AUV tracking chain (conventions of :mod:`zarco_runtime.messages`).
+"""Messages of the AUV tracking chain (conventions of :mod:`zarco_core.messages`).
 
 ``@dataclass(slots=True)``, first field ``t`` = runtime clock time (s) at which
 the message became valid, SI units, angles in radians, local NED frame

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from zarco_runtime.sim_report import TrackLog
-from zarco_runtime.tracking.messages import AuvFix, AuvTrack, TrackFlags
+from zarco_core.auv_messages import AuvFix, AuvTrack, TrackFlags
+from zarco_tools.sim_report import TrackLog
 
 COURSE_SETTLE_S = 30.0
 DISTANCE_SETTLE_S = 60.0

@@ -22,7 +22,8 @@ from drivers.sim.acoustics import LblParams
 from drivers.sim.auv import AuvParams
 from drivers.sim.faults import FaultSpec
 from drivers.sim.params import WorldParams
-from zarco_runtime.config import ConfigError, apply_overrides, build, load_toml, spec
+from zarco_core.config import ConfigError, apply_overrides, build, load_toml, spec
+from zarco_runtime.config_file import load_runtime_config  # noqa: F401 (re-export)
 from zarco_runtime.guidance.mission import MissionConfig
 from zarco_runtime.settings import RuntimeConfig
 
@@ -74,17 +75,3 @@ def load_scenario(path: str | Path, overrides: list[str] | None = None,
         raise ConfigError(file, "runtime.origin",
                           "must equal the world's origin in a scenario (or be left out)")
     return scn
-
-
-def load_runtime_config(path: str | Path, overrides: list[str] | None = None
-                        ) -> tuple[RuntimeConfig, MissionConfig | None]:
-    """Read and validate ``config/zarco.toml`` (the boat's configuration) and its
-    optional ``[mission]`` table."""
-    file = str(path)
-    data = load_toml(path)
-    if overrides:
-        apply_overrides(data, overrides, file=f"{file} (--set)")
-    mission_raw = data.pop("mission", None)
-    cfg = build(RuntimeConfig, data, file)
-    mission = build(MissionConfig, mission_raw, file, "mission") if mission_raw else None
-    return cfg, mission

@@ -17,7 +17,7 @@ its sentence type, never raised.  Bytes the framer throws away count as one
 ``framing`` refusal per input line.
 
 Timing: captures carry no arrival times.  When the capture has UTC times of
-its own (a checked GGA, RMC, ZDA, also GNS/GLL: :func:`zarco_runtime.replay.
+its own (a checked GGA, RMC, ZDA, also GNS/GLL: :func:`zarco_tools.replay.
 sentence_time`), every sentence is timed by the last of them (s after the first
 one, midnight unwrapped), plus 1 ms per sentence so that the sentences of one
 epoch keep their order; a clock that runs back by more than 1 s is followed
@@ -57,16 +57,16 @@ from typing import IO, Any
 from drivers.compass_parser import heading_from_magnetic, parse_compass
 from drivers.gps_parser import parse_gps
 from drivers.nmea import NmeaError, NmeaFramer, sentence_type
-from zarco_runtime.decode import is_compass_type
-from zarco_runtime.geodesy import LocalFrame
-from zarco_runtime.messages import (
+from zarco_core.geodesy import LocalFrame
+from zarco_core.messages import (
     FixQuality,
     GpsFix,
     Heading,
 )
 from zarco_runtime.navigation.ekf import KIND_NAMES, EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
-from zarco_runtime.replay import sentence_time
+from zarco_tools.decode import is_compass_type
+from zarco_tools.replay import sentence_time
 
 #: time added per sentence in a UTC-timed capture (s): keeps an epoch's order
 SENTENCE_STEP_S = 1e-3
@@ -80,7 +80,7 @@ ERROR_SAMPLES = 5
 def parse_sentence(line: str, t: float, variation_deg: float | None = None) -> list[Any]:
     """One framed sentence received at ``t`` (s) → bus messages, or ``NmeaError``.
 
-    Routed as ``zarco decode`` routes it (:func:`zarco_runtime.decode.is_compass_type`):
+    Routed as ``zarco decode`` routes it (:func:`zarco_tools.decode.is_compass_type`):
     the types only a compass sends to :func:`parse_compass` (source ``compass``),
     everything else to :func:`parse_gps` (source ``gps``: HDT/THS are the
     receiver's true heading).  ``variation_deg`` (east +) is given to the GPS

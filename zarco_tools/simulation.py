@@ -20,18 +20,18 @@ from typing import Any
 from drivers.sim.acoustics import AcousticWorld
 from drivers.sim.auv import Auv
 from drivers.sim.backend import SimBackend
+from drivers.sim.ports import SimPorts
 from drivers.sim.world import SimWorld
-from drivers.transports import SimPorts
-from zarco_runtime.bus import Bus
-from zarco_runtime.clock import Clock, run_virtual
-from zarco_runtime.follow_report import follow_figures
-from zarco_runtime.geodesy import LocalFrame
+from zarco_core.auv_messages import AuvFix, AuvTrack
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock, run_virtual
+from zarco_core.geodesy import LocalFrame
+from zarco_core.messages import Fault, GuidanceStatus, NavState, ThrusterCommand
 from zarco_runtime.guidance.mission import Leg, build_legs
-from zarco_runtime.messages import Fault, GuidanceStatus, NavState, ThrusterCommand
 from zarco_runtime.runtime import Runtime
-from zarco_runtime.scenario import Scenario
-from zarco_runtime.sim_report import TrackLog, line_figures
-from zarco_runtime.tracking.messages import AuvFix, AuvTrack
+from zarco_tools.follow_report import follow_figures
+from zarco_tools.scenario import Scenario
+from zarco_tools.sim_report import TrackLog, line_figures
 
 ProgressFn = Callable[[float, float, int, int], None]
 
@@ -66,7 +66,7 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         counters["acoustics"] = acoustics
         bus.tap(lambda m: counters.setdefault("auv_msgs", []).append(m)
                 if isinstance(m, (AuvFix, AuvTrack)) else None)
-    runtime = Runtime(scn.runtime, legs, bus, clock, sim=ports,
+    runtime = Runtime(scn.runtime, legs, bus, clock, ports=ports,
                       mode="follow" if follow else "lines")
     guid = bus.latest(GuidanceStatus)
     cmd = bus.latest(ThrusterCommand)
