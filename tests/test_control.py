@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from zarco_core.messages import FixQuality, NavState
+from zarco_core.vessel import VesselModel
 from zarco_runtime.control.allocation import Allocation
 from zarco_runtime.control.line_tracking import LineController
 from zarco_runtime.control.lqr import c2d, design, steering_model
+from zarco_runtime.control.settings import Control
 from zarco_runtime.guidance.lines import LineGuidance
 from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.settings import Control, VesselModel
 
 VM = VesselModel()
 CTL = Control()

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
+from zarco_core.thruster_map import ThrusterMap
 from zarco_runtime.control.allocation import allocate
-from zarco_runtime.control.thruster_map import ThrusterMap
 from zarco_runtime.settings import DEFAULT_TABLE_F, DEFAULT_TABLE_U
 
 M = ThrusterMap.from_table(DEFAULT_TABLE_U, DEFAULT_TABLE_F)

@@ -9,7 +9,7 @@ import pytest
 
 from drivers.sim.params import ThrusterParams
 from drivers.sim.thruster_model import nominal_table, nominal_thrust, thruster_thrust
-from zarco_runtime.control.thruster_map import ThrusterMap
+from zarco_core.thruster_map import ThrusterMap
 
 P = ThrusterParams()
 

@@ -13,16 +13,14 @@ from dataclasses import dataclass
 from drivers.settings import Device
 from zarco_core.config import spec
 from zarco_core.geodesy import Origin
-from zarco_runtime.control.settings import (
+from zarco_core.vessel import (
     DEFAULT_TABLE_F,
     DEFAULT_TABLE_U,
-    XTRACK_RATE_TAU_S,
-    Control,
     Thrusters,
     ThrusterTable,
     VesselModel,
-    xtrack_rate_tau_s,
 )
+from zarco_runtime.control.settings import XTRACK_RATE_TAU_S, Control, xtrack_rate_tau_s
 from zarco_runtime.guidance.follow import FollowSettings
 from zarco_runtime.guidance.settings import Guidance
 from zarco_runtime.navigation.ekf_config import EkfSettings

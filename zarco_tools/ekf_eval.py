@@ -54,7 +54,7 @@ from drivers.nmea import NmeaError, NmeaFramer
 from drivers.sim.params import WorldParams
 from drivers.sim.world import SimWorld
 from zarco_core.geodesy import LocalFrame
-from zarco_runtime.control.thruster_map import ThrusterMap
+from zarco_core.thruster_map import ThrusterMap
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.settings import DEFAULT_TABLE_F, DEFAULT_TABLE_U

@@ -61,7 +61,7 @@ def nominal_table(p: ThrusterParams, points: Sequence[float] | None = None,
     deadband edges ±deadband and U = 0 (all with F = 0) and the ends ±100 are
     always included, points outside −100..100 are dropped, duplicates merged.
     U is strictly increasing and F non-decreasing, as the runtime's f⁻¹
-    (``zarco_runtime.control.thruster_map``) requires.  ``decimals`` rounds F
+    (``zarco_core.thruster_map``) requires.  ``decimals`` rounds F
     (rounding is monotone, so the table stays monotone); None keeps full
     precision.
     """

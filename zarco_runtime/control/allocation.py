@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zarco_runtime.control.thruster_map import ThrusterMap
+from zarco_core.thruster_map import ThrusterMap
 
 
 @dataclass(frozen=True, slots=True)

@@ -29,9 +29,10 @@ from dataclasses import dataclass
 
 from zarco_core.angles import wrap
 from zarco_core.messages import NavState
+from zarco_core.vessel import VesselModel
 from zarco_runtime.control.allocation import Allocation
 from zarco_runtime.control.lqr import GainSchedule
-from zarco_runtime.control.settings import Control, VesselModel, xtrack_rate_tau_s
+from zarco_runtime.control.settings import Control, xtrack_rate_tau_s
 from zarco_runtime.guidance.mission import Leg
 
 

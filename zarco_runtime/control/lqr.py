@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from zarco_runtime.control.settings import Control, VesselModel
+from zarco_core.vessel import VesselModel
+from zarco_runtime.control.settings import Control
 
 STATE = ("d", "l", "e", "r", "v", "nt")
 
@@ -71,8 +72,9 @@ def dare(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarr
         a_next = ak @ w_inv_a
         g_next = gk + ak @ w_inv_g @ ak.T
         h_next = hk + ak.T @ hk @ w_inv_a
-        if np.linalg.norm(h_next - hk) <= 1e-10 * max(1.0, np.linalg.norm(h_next)):
-            return h_next
+        if float(np.linalg.norm(h_next - hk)) <= 1e-10 * max(1.0, float(np.linalg.norm(h_next))):
+            out: np.ndarray = h_next
+            return out
         ak, gk, hk = a_next, g_next, h_next
     raise ArithmeticError("DARE did not converge")
 

@@ -30,10 +30,10 @@ from zarco_core.messages import (
     ThrusterCommand,
     ThrusterStatus,
 )
+from zarco_core.thruster_map import ThrusterMap
 from zarco_runtime.control.allocation import ZERO, Allocation, allocate
 from zarco_runtime.control.line_tracking import Demand, LineController
 from zarco_runtime.control.settings import xtrack_rate_tau_s
-from zarco_runtime.control.thruster_map import ThrusterMap
 from zarco_runtime.guidance.follow import FollowGuidance
 from zarco_runtime.guidance.lines import LineGuidance
 from zarco_runtime.guidance.mission import Leg
