@@ -188,6 +188,8 @@ class NavState:
     position the estimator fused (s; inf before the first): above a few GPS
     periods the position is dead-reckoned, and the supervisor
     (``failsafe.gps_lost``) decides whether the vessel goes on.
+    ``current_n_mps``, ``current_e_mps`` are the estimated water current (NED,
+    m/s, the direction the water flows towards; 0 when not estimated).
     """
 
     t: float
@@ -206,6 +208,8 @@ class NavState:
     heading_valid: bool
     cov: tuple[float, ...] = ()
     gps_age_s: float = 0.0
+    current_n_mps: float = 0.0
+    current_e_mps: float = 0.0
 
 
 # --------------------------------------------------- guidance and control

@@ -992,6 +992,7 @@ class EkfNavigator:
             fix=self.fix, pos_valid=pos_valid, heading_valid=hdg_valid,
             cov=tuple(cov.ravel().tolist()),
             gps_age_s=t - c.t_pos if c.pos_init else math.inf,
+            current_n_mps=float(x[ICN]), current_e_mps=float(x[ICE]),
         )
 
     def _validity(self, c: _Core, t: float) -> tuple[bool, bool]:
