@@ -93,7 +93,7 @@ class DeviceLink:
 
     def publish_health(self) -> None:
         self.bus.publish(DeviceHealth(self.clock.now(), self.name, self.state, self.reason,
-                                      dict(self.counters)))
+                                      dict(self.counters), self.last_ok))
 
     async def read_or_reopen(self, tr: Transport) -> bytes:
         """Next chunk; a port silent for ``cfg.reopen_s`` is treated as failed.

@@ -22,7 +22,7 @@ from drivers.nmea_device import DeviceLink
 from drivers.settings import Device
 from drivers.thruster_protocol import encode_pzthr, parse_pzths
 from drivers.transports import Ports, Transport, TransportError
-from zarco_core.bus import Bus
+from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock
 from zarco_core.messages import HealthState, ThrusterCommand
 
@@ -33,9 +33,9 @@ ZERO = encode_pzthr(0.0, 0.0)
 
 class ThrusterDriver(DeviceLink):
     def __init__(self, cfg: Device, bus: Bus, clock: Clock, ports: Ports | None = None,
-                 name: str = "thrusters") -> None:
+                 name: str = "thrusters", listen: Listen | None = None) -> None:
         super().__init__(name, cfg, bus, clock, ports)
-        bus.listen(ThrusterCommand, self.on_command)
+        (listen or bus.listen)(ThrusterCommand, self.on_command)
         self.tr: Transport | None = None
         self.last_cmd_t = -math.inf
         self.last_sent: tuple[float, float] = (0.0, 0.0)

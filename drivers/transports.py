@@ -183,7 +183,13 @@ class Ports(Protocol):
 
 class SystemPorts:
     """The vessel's port backend: serial ports (pyserial-asyncio-fast) and TCP,
-    plus ``loop://`` for tests when ``loopback`` is set."""
+    plus ``loop://`` for tests when ``loopback`` is set.
+
+    A serial port is opened exclusively: ``flock`` (pyserial's ``exclusive``,
+    so another well-behaved program cannot open it) and the tty's
+    ``TIOCEXCL`` (so no other unprivileged process can open it at all: nobody
+    else can write ``$PZTHR`` to the thruster controller).
+    """
 
     def __init__(self, loopback: bool = False) -> None:
         self.schemes: tuple[str, ...] = SYSTEM_SCHEMES + (("loop",) if loopback else ())
@@ -212,10 +218,20 @@ class SystemPorts:
 
         try:
             reader, writer = await serial_asyncio_fast.open_serial_connection(
-                url=path, baudrate=baudrate
+                url=path, baudrate=baudrate, exclusive=True
             )
         except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
+            if "lock" in str(exc).lower() or "busy" in str(exc).lower():
+                raise TransportError(f"{path}: in use by another process ({exc})") from exc
             raise TransportError(f"{path}: {exc}") from exc
+        ser = getattr(writer.transport, "serial", None)
+        fd = getattr(ser, "fd", None)
+        if isinstance(fd, int):
+            import fcntl
+            import termios
+
+            with contextlib.suppress(OSError):  # not a tty (a plain file in a test)
+                fcntl.ioctl(fd, termios.TIOCEXCL)
         return StreamTransport(url, reader, writer)
 
 

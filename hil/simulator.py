@@ -37,7 +37,7 @@ from typing import Any
 
 from drivers.nmea import NmeaError, NmeaFramer
 from drivers.sim.backend import STATUS_RATE_HZ
-from drivers.sim.faults import FAULT_DEVICES, FaultPlan, FaultSpec
+from drivers.sim.faults import FaultPlan, FaultSpec
 from drivers.sim.world import SimWorld
 from drivers.thruster_protocol import parse_pzthr
 from hil.ptys import PtyPort
@@ -114,6 +114,10 @@ class Timing:
     gps_writes: list[float] = field(default_factory=list)
 
 
+#: the devices behind pseudo-terminals
+HIL_DEVICES = ("gps", "compass", "thrusters")
+
+
 class HilSimulator:
     """World + devices + faults behind pseudo-terminals in ``run_dir/dev``."""
 
@@ -131,10 +135,10 @@ class HilSimulator:
         self.leg = 0
         self.complete = asyncio.Event()
         self.dev_dir = Path(run_dir) / "dev"
-        self.ports = {d: PtyPort(d, self.dev_dir / d) for d in FAULT_DEVICES}
+        self.ports = {d: PtyPort(d, self.dev_dir / d) for d in HIL_DEVICES}
         self.out = {d: DeviceOut(p) for d, p in self.ports.items()}
         self.links = {d: str(p.link) for d, p in self.ports.items()}
-        self.attached = dict.fromkeys(FAULT_DEVICES, False)
+        self.attached = dict.fromkeys(HIL_DEVICES, False)
         self.log = TrackLog()
         self.events: list[Event] = []
         self.timing = Timing()
@@ -280,7 +284,7 @@ class HilSimulator:
             self.progress(t)
 
     def _noise(self, t: float, last: list[float]) -> None:
-        for d in FAULT_DEVICES:
+        for d in HIL_DEVICES:
             if self.ports[d].plugged:
                 junk = self.plan.noise(d, last[0], t)
                 if junk:

@@ -1,17 +1,22 @@
-"""The control task's safety: NaN never reaches a thruster; invalid nav → zero thrust."""
+"""The control task executes the supervisor's directive and nothing else: NaN
+never reaches a thruster, an invalid estimate or a stale directive gives zero
+thrust, manual thrust lasts only for its lease."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 from zarco_core.bus import Bus
-from zarco_core.clock import Clock
-from zarco_core.messages import Fault, FixQuality, NavState
+from zarco_core.clock import Clock, run_virtual
+from zarco_core.messages import Fault, FixQuality, GuidanceStatus, Mode, NavState
 from zarco_runtime.control.task import ControlTask
-from zarco_runtime.guidance.mission import Leg
+from zarco_runtime.guidance.directive import Directive, ManualThrust
+from zarco_runtime.guidance.mission import Leg, Mission
 from zarco_runtime.settings import RuntimeConfig
 
-LEGS = [Leg(0, 0.0, 0.0, 100.0, 0.0, 1.0)]
+LEGS = (Leg(0, 0.0, 0.0, 100.0, 0.0, 1.0),)
+LINES = Mission("lines", LEGS, "test")
 
 
 def _nav(t: float, psi: float = 0.0, valid: bool = True, x: float = 20.0) -> NavState:
@@ -19,95 +24,130 @@ def _nav(t: float, psi: float = 0.0, valid: bool = True, x: float = 20.0) -> Nav
                     FixQuality.RTK_FIXED, valid, True)
 
 
-def _task() -> tuple[ControlTask, Bus, list[Fault]]:
-    bus = Bus()
-    faults: list[Fault] = []
-    bus.tap(lambda m: faults.append(m) if isinstance(m, Fault) else None)
-    return ControlTask(RuntimeConfig(), bus, Clock(utc_offset_s=0.0), LEGS), bus, faults
+class Rig:
+    def __init__(self) -> None:
+        self.bus = Bus()
+        self.faults: list[Fault] = []
+        self.status: list[GuidanceStatus] = []
+        self.bus.listen(Fault, self.faults.append)
+        self.bus.listen(GuidanceStatus, self.status.append)
+        self.task = ControlTask(RuntimeConfig(), self.bus, Clock(utc_offset_s=0.0))
+
+    def directive(self, t: float, mode: Mode, seq: int = 1, **kw: object) -> None:
+        self.bus.publish(Directive(t, seq, mode, **kw))  # type: ignore[arg-type]
+
+
+def test_without_a_directive_the_boat_stays_idle() -> None:
+    r = Rig()
+    r.bus.publish(_nav(0.0))
+    a = r.task.tick(0.0)
+    assert (a.u1, a.u2) == (0.0, 0.0)
 
 
 def test_nan_heading_gives_zero_thrust_and_a_fault() -> None:
-    task, bus, faults = _task()
-    bus.publish(_nav(0.0))
-    ok = task.tick(0.0)
+    r = Rig()
+    r.directive(0.0, Mode.LINES, mission=LINES)
+    r.bus.publish(_nav(0.0))
+    ok = r.task.tick(0.0)
     assert ok.u1 != 0.0 or ok.u2 != 0.0
-    bus.publish(_nav(0.05, psi=math.nan))
-    a = task.tick(0.05)
+    r.bus.publish(_nav(0.05, psi=math.nan))
+    a = r.task.tick(0.05)
     assert (a.u1, a.u2) == (0.0, 0.0)
-    assert faults and "non-finite" in faults[-1].reason
+    assert r.faults and "non-finite" in r.faults[-1].reason
     # and it recovers when the input is sane again
-    bus.publish(_nav(0.10))
-    a = task.tick(0.10)
+    r.bus.publish(_nav(0.10))
+    a = r.task.tick(0.10)
     assert a.u1 != 0.0 and math.isfinite(a.u1)
-    assert task.fault == ""
+    assert r.task.fault == ""
 
 
-def test_invalid_position_for_too_long_commands_zero() -> None:
-    task, bus, faults = _task()
-    bus.publish(_nav(0.0, valid=False))
-    a = task.tick(0.0)
-    assert a.u1 != 0.0  # still within the grace period
-    bus.publish(_nav(1.5, valid=False))
-    a = task.tick(1.5)
+def test_an_invalid_estimate_gives_zero_thrust_at_once() -> None:
+    r = Rig()
+    r.directive(0.0, Mode.LINES, mission=LINES)
+    r.bus.publish(_nav(0.0, valid=False))
+    a = r.task.tick(0.0)
     assert (a.u1, a.u2) == (0.0, 0.0)
-    assert "no valid position" in faults[-1].reason
-    bus.publish(_nav(1.6, valid=True))
-    assert task.tick(1.6).u1 != 0.0
+    assert r.task.reason == "no valid position"
+    r.bus.publish(_nav(0.05, valid=True))
+    assert r.task.tick(0.05).u1 != 0.0
 
 
-def test_mission_completion_sets_event_and_stops_thrust() -> None:
-    task, bus, _ = _task()
-    bus.publish(_nav(0.0, x=100.5))
-    a = task.tick(0.0)
+def test_a_stale_directive_counts_as_idle() -> None:
+    """A supervisor that stopped republishing cannot leave the boat driving."""
+    r = Rig()
+    timeout = r.task.cfg.supervisor.directive_timeout_s
+    r.directive(0.0, Mode.LINES, mission=LINES)
+    r.bus.publish(_nav(timeout * 0.9))
+    assert r.task.tick(timeout * 0.9).u1 != 0.0
+    r.bus.publish(_nav(timeout * 1.1))
+    a = r.task.tick(timeout * 1.1)
     assert (a.u1, a.u2) == (0.0, 0.0)
-    assert task.complete.is_set()
+    assert "no directive" in r.faults[-1].reason
 
 
-def _nav_age(t: float, gps_age_s: float) -> NavState:
-    return NavState(t, 20.0, 0.3, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 41.0, -8.0,
-                    FixQuality.RTK_FIXED, True, True, (), gps_age_s)
-
-
-def _task_policy(policy: str, continue_s: float = 10.0) -> tuple[ControlTask, Bus, list[Fault]]:
-    cfg = RuntimeConfig()
-    cfg.failsafe.gps_lost = policy
-    cfg.failsafe.gps_lost_continue_s = continue_s
-    bus = Bus()
-    faults: list[Fault] = []
-    bus.tap(lambda m: faults.append(m) if isinstance(m, Fault) else None)
-    return ControlTask(cfg, bus, Clock(utc_offset_s=0.0), LEGS), bus, faults
-
-
-def test_gps_lost_with_policy_zero_holds_thrust_at_zero_until_a_fix() -> None:
-    task, bus, faults = _task_policy("zero")
-    bus.publish(_nav_age(0.0, 0.1))
-    assert task.tick(0.0).u1 != 0.0
-    # the estimate is still valid (dead reckoning) but the GPS is 0.6 s old
-    bus.publish(_nav_age(0.1, 0.6))
-    a = task.tick(0.1)
+def test_mission_completion_reports_complete_and_stops_thrust() -> None:
+    r = Rig()
+    r.directive(0.0, Mode.LINES, mission=LINES)
+    r.bus.publish(_nav(0.0, x=100.5))
+    a = r.task.tick(0.0)
     assert (a.u1, a.u2) == (0.0, 0.0)
-    assert "GPS lost" in faults[-1].reason
-    bus.publish(_nav_age(0.2, 0.05))
-    assert task.tick(0.2).u1 != 0.0
-    assert task.fault == ""
+    assert r.status[-1].complete and r.status[-1].mode == "lines"
 
 
-def test_gps_lost_with_policy_continue_goes_on_for_n_seconds() -> None:
-    task, bus, faults = _task_policy("continue", continue_s=5.0)
-    bus.publish(_nav_age(0.0, 4.9))
-    assert task.tick(0.0).u1 != 0.0
-    assert not faults
-    # the age is extrapolated with the state: a NavState 0.2 s old at 4.9 s is 5.1 s
-    a = task.tick(0.2)
+def test_manual_thrust_holds_only_for_its_lease() -> None:
+    r = Rig()
+    r.directive(0.0, Mode.MANUAL)
+    assert (r.task.tick(0.0).u1, r.task.tick(0.0).u2) == (0.0, 0.0)  # nothing sent yet
+    r.bus.publish(ManualThrust(0.1, 40.0, -250.0, until=1.1))
+    a = r.task.tick(0.5)
+    assert (a.u1, a.u2) == (40.0, -100.0)  # clamped to the scale
+    r.directive(0.9, Mode.MANUAL)  # the supervisor republishes it
+    a = r.task.tick(1.2)
     assert (a.u1, a.u2) == (0.0, 0.0)
-    assert "more than 5 s" in faults[-1].reason
+    r.bus.publish(ManualThrust(1.3, math.nan, 10.0, until=2.3))
+    a = r.task.tick(1.4)
+    assert (a.u1, a.u2) == (0.0, 10.0)
 
 
-def test_no_fix_yet_is_not_a_gps_loss() -> None:
-    """Before the first fix (gps_age inf) the estimate is invalid: the nav_invalid_s
-    grace applies, not the GPS-loss policy."""
-    task, bus, faults = _task_policy("zero")
-    bus.publish(NavState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.nan, math.nan,
-                         FixQuality.NONE, False, True, (), math.inf))
-    task.tick(0.0)
-    assert not faults
+def test_manual_thrust_from_before_the_mode_was_entered_is_ignored() -> None:
+    r = Rig()
+    r.bus.publish(ManualThrust(0.0, 50.0, 50.0, until=5.0))
+    r.directive(0.5, Mode.MANUAL)
+    a = r.task.tick(0.6)
+    assert (a.u1, a.u2) == (0.0, 0.0)
+
+
+def test_idle_directive_stops_a_running_mission_at_the_next_tick() -> None:
+    r = Rig()
+    r.directive(0.0, Mode.LINES, mission=LINES)
+    r.bus.publish(_nav(0.0))
+    assert r.task.tick(0.0).u1 != 0.0
+    r.directive(0.02, Mode.IDLE, seq=2)
+    a = r.task.tick(0.05)
+    assert (a.u1, a.u2) == (0.0, 0.0)
+
+
+def test_the_run_loop_publishes_zero_when_a_tick_raises() -> None:
+    """A guidance bug raises out of the loop (the component is restarted), but the
+    last command it publishes is zero thrust."""
+    from zarco_core.messages import ThrusterCommand
+
+    async def main() -> list[ThrusterCommand]:
+        r = Rig()
+        cmds: list[ThrusterCommand] = []
+        r.bus.listen(ThrusterCommand, cmds.append)
+        r.task.clock = Clock(utc_offset_s=0.0)
+        r.directive(0.0, Mode.LINES, mission=LINES)
+        r.bus.publish(_nav(0.0))
+
+        def boom(t: float, nav: NavState) -> object:
+            raise ZeroDivisionError("guidance bug")
+
+        r.task._tick_lines = boom  # type: ignore[method-assign,assignment]
+        with contextlib.suppress(ZeroDivisionError):
+            await r.task.run()
+        return cmds
+
+    cmds = run_virtual(main())
+    assert cmds and (cmds[-1].u1, cmds[-1].u2) == (0.0, 0.0)
+    assert "guidance bug" in cmds[-1].reason

@@ -10,16 +10,38 @@ controller reads the latest NavState at every tick).
 
 Tasks talk only through the bus (LSTS DUNE's model): a driver publishes
 GpsFix, the estimator publishes NavState, and so on.
+
+A listener that raises never reaches its publisher: the bus catches the
+exception and hands it to the listener's *owner* (the supervised component
+that registered it, :mod:`zarco_core.component`), which stops all its
+listeners and is restarted; a listener without an owner is logged and
+counted (``listener_errors``).
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections import deque
 from collections.abc import Callable
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 M = TypeVar("M")
+log = logging.getLogger("zarco.bus")
+
+
+class Listen(Protocol):
+    """``listen(kind, fn)``: how a component registers a bus listener (its own
+    :meth:`ComponentContext.listen <zarco_core.component.ComponentContext.listen>`,
+    so that a failure is its own, or plain :meth:`Bus.listen`)."""
+
+    def __call__(self, kind: type[M], fn: Callable[[M], None], /) -> None: ...
+
+
+class ListenerOwner(Protocol):
+    """Who is responsible for a listener: told when one of its listeners raised."""
+
+    def listener_failed(self, exc: BaseException, msg: object) -> None: ...
 
 
 class Subscription(Generic[M]):
@@ -91,11 +113,13 @@ class Latest(Generic[M]):
 
 
 class _Listener:
-    __slots__ = ("_put", "kinds")
+    __slots__ = ("_put", "kinds", "owner")
 
-    def __init__(self, kind: type, fn: Callable[[Any], None]) -> None:
+    def __init__(self, kind: type, fn: Callable[[Any], None],
+                 owner: ListenerOwner | None = None) -> None:
         self.kinds = (kind,)
         self._put = fn
+        self.owner = owner
 
 
 class Bus:
@@ -105,6 +129,7 @@ class Bus:
         self._subs: dict[type, list[Any]] = {}
         self._taps: list[Callable[[Any], None]] = []
         self.published = 0
+        self.listener_errors = 0
 
     def subscribe(self, *kinds: type, maxlen: int = 256) -> Subscription[Any]:
         """A queue of every message whose type is one of ``kinds``, in order."""
@@ -118,16 +143,26 @@ class Bus:
         self._subs.setdefault(kind, []).append(lat)
         return lat
 
-    def listen(self, kind: type[M], fn: Callable[[M], None]) -> None:
+    def listen(self, kind: type[M], fn: Callable[[M], None],
+               owner: ListenerOwner | None = None) -> None:
         """Call ``fn(msg)`` synchronously, in the publisher's context, for every
         message of type ``kind``.
 
         For bounded-time handlers whose work must happen with no scheduling
         delay: the thruster driver putting a command on the wire, the
         navigation estimator folding a measurement in.  ``fn`` must be quick
-        and must not raise (an exception is the publisher's).
+        and should not raise: an exception goes to ``owner`` (which stops and
+        restarts its component), or is logged and counted, never to the
+        publisher.
         """
-        self._subs.setdefault(kind, []).append(_Listener(kind, fn))
+        self._subs.setdefault(kind, []).append(_Listener(kind, fn, owner))
+
+    def remove_owner(self, owner: ListenerOwner) -> None:
+        """Remove every listener registered by ``owner``."""
+        # new lists: a publish() iterating the old one is not disturbed
+        for k, lst in list(self._subs.items()):
+            self._subs[k] = [s for s in lst
+                             if not (isinstance(s, _Listener) and s.owner is owner)]
 
     def tap(self, fn: Callable[[Any], None]) -> None:
         """Call ``fn(msg)`` synchronously for every message (recorders, metrics).
@@ -144,9 +179,27 @@ class Bus:
                 lst.remove(sub)
 
     def publish(self, msg: Any) -> None:
-        """Deliver ``msg`` to every subscriber of its type; never blocks."""
+        """Deliver ``msg`` to every subscriber of its type; never blocks, never
+        raises (a failing listener is its owner's problem)."""
         self.published += 1
         for s in self._subs.get(type(msg), ()):
-            s._put(msg)
+            try:
+                s._put(msg)
+            except Exception as exc:
+                self._failed(s, msg, exc)
         for fn in self._taps:
-            fn(msg)
+            try:
+                fn(msg)
+            except Exception as exc:
+                self._failed(None, msg, exc)
+
+    def _failed(self, sub: Any, msg: object, exc: Exception) -> None:
+        self.listener_errors += 1
+        owner = getattr(sub, "owner", None)
+        if owner is not None:
+            self.remove_owner(owner)
+            owner.listener_failed(exc, msg)
+            return
+        if self.listener_errors <= 10 or self.listener_errors % 1000 == 0:
+            log.error("a bus listener raised on %s (%d so far)", type(msg).__name__,
+                      self.listener_errors, exc_info=exc)

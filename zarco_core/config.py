@@ -95,6 +95,8 @@ def _is_optional(tp: Any) -> tuple[bool, Any]:
 
 def _coerce(value: Any, tp: Any, file: str, key: str) -> Any:
     optional, tp = _is_optional(tp)
+    if tp is Any or tp is object:  # free-form (a command's arguments): any TOML value
+        return value
     if value is None:
         if optional:
             return None

@@ -256,13 +256,15 @@ class ControlStatus:
 
 @dataclass(slots=True)
 class DeviceHealth:
-    """A device driver's health and counters."""
+    """A device driver's health and counters; ``last_ok_t`` is the time of its
+    last valid sentence (None: none yet)."""
 
     t: float
     device: str
     state: HealthState
     reason: str = ""
     counters: dict[str, int] = field(default_factory=dict)
+    last_ok_t: float | None = None
 
 
 @dataclass(slots=True)
@@ -272,3 +274,144 @@ class Fault:
     t: float
     source: str
     reason: str
+
+
+# ------------------------------------------------------------ supervision
+
+
+class Mode(enum.StrEnum):
+    """The vessel's modes; one supervisor owns the current one.
+
+    ``idle`` zero thrust; ``manual`` the operator's U1, U2 for a lease;
+    ``lines`` line tracking along a mission; ``follow`` following the AUV;
+    ``hold`` station keeping at a point; ``return`` go home, then hold.
+    """
+
+    IDLE = "idle"
+    MANUAL = "manual"
+    LINES = "lines"
+    FOLLOW = "follow"
+    HOLD = "hold"
+    RETURN = "return"
+
+
+#: modes in which the vessel moves on its own (navigation failsafes apply)
+UNDER_WAY = frozenset({Mode.LINES, Mode.FOLLOW, Mode.HOLD, Mode.RETURN})
+
+
+@dataclass(slots=True)
+class Command:
+    """An operator's (or a script's) command to the supervisor.
+
+    ``id`` is chosen by the sender and echoed in the acknowledgement;
+    ``source`` says who sent it (``local``, ``scenario``, ``shore:<user>``,
+    ``mavlink:<system id>``).  ``name`` and ``args`` follow the shore protocol:
+    ``stop {}``, ``mode {"mode": "hold", "lat_deg"?, "lon_deg"?}``,
+    ``mission {"waypoints": [[lat_deg, lon_deg], ...], "speed_mps", "start"}``,
+    ``follow {}``, ``thrust {"u1", "u2"}`` (manual mode; renews the lease),
+    ``resume {}``, ``arm {}``, ``disarm {}``.
+    """
+
+    t: float
+    id: str
+    source: str
+    name: str
+    args: dict[str, object] = field(default_factory=dict)
+
+
+@dataclass(slots=True)
+class CommandAck:
+    """Exactly one per Command: accepted (``ok``) or refused with ``reason``.
+    ``mode`` is the vessel's mode after the command."""
+
+    t: float
+    id: str
+    source: str
+    name: str
+    ok: bool
+    mode: str
+    reason: str = ""
+
+
+@dataclass(slots=True)
+class Event:
+    """Something an operator should know, in words: ``kind`` is ``mode``,
+    ``failsafe``, ``ack``, ``fault``, ``component`` or ``mission``."""
+
+    t: float
+    kind: str
+    text: str
+    source: str = "supervisor"
+
+
+@dataclass(slots=True)
+class OperatorHeartbeat:
+    """An operator's link is alive (shore link or ground station): ``link`` names
+    the link (``shore``, ``mavlink``), ``user`` the operator."""
+
+    t: float
+    link: str
+    user: str = ""
+
+
+@dataclass(slots=True)
+class ComponentState:
+    """A supervised component (task) changed state: ``running``, ``failed``
+    (it raised; ``error`` says what) or ``restarting`` (after a backoff)."""
+
+    t: float
+    component: str
+    state: str
+    restarts: int = 0
+    failures: int = 0
+    error: str = ""
+
+
+@dataclass(slots=True)
+class DeviceSummary:
+    """One device in the status snapshot: health ``state`` and ``reason``,
+    ``age_s`` since its last valid sentence (None: never), ``ok`` sentences
+    accepted and ``bad`` refused, and its raw counters."""
+
+    state: str
+    reason: str
+    age_s: float | None
+    ok: int
+    bad: int
+    counters: dict[str, int] = field(default_factory=dict)
+
+
+@dataclass(slots=True)
+class MissionProgress:
+    """Where the active (or last) mission stands: ``kind`` lines/follow, ``leg``
+    0-based of ``legs``, ``complete``; ``xtrack_m`` the cross-track error."""
+
+    kind: str = ""
+    name: str = ""
+    leg: int = 0
+    legs: int = 0
+    complete: bool = False
+    xtrack_m: float | None = None
+    along_m: float | None = None
+
+
+@dataclass(slots=True)
+class VesselStatus:
+    """The 1 Hz status snapshot: the single source for ``zarco run --status``,
+    HIL and the shore link's health.
+
+    ``utc_s`` is UTC seconds since the epoch at ``t``; ``failsafes`` the active
+    failsafe conditions; ``components`` maps a component to its state and
+    restart count; ``counters`` gathers the control loop's and the bus's.
+    """
+
+    t: float
+    utc_s: float
+    mode: str
+    armed: bool
+    mission: MissionProgress
+    failsafes: list[str]
+    devices: dict[str, DeviceSummary]
+    components: dict[str, ComponentState]
+    counters: dict[str, int]
+    reason: str = ""

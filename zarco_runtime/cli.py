@@ -11,79 +11,52 @@ or evaluation code.
 from __future__ import annotations
 
 import argparse
-import asyncio
 import json
 import logging
-import signal
 import sys
-from pathlib import Path
 from typing import Any
 
 from zarco_core.config import ConfigError
 
 
-def _status_file(path: str, runtime: Any) -> Any:
-    """``--status FILE``: one JSON line per device health transition (with its
-    counters) while running, and a ``"final": true`` line with every device's
-    counters on exit.  Returns the function that writes the final line."""
-    import time
-
-    from zarco_core.messages import DeviceHealth
-
-    fh = Path(path).open("a", buffering=1)  # noqa: SIM115 (closed by final())
-    last: dict[str, tuple[str, str]] = {}
-
-    def on_health(m: DeviceHealth) -> None:
-        if last.get(m.device) != (m.state.value, m.reason):
-            last[m.device] = (m.state.value, m.reason)
-            fh.write(json.dumps({"wall": round(time.time(), 3), "t": round(m.t, 3),
-                                 "device": m.device, "state": m.state.value,
-                                 "reason": m.reason, "counters": m.counters}) + "\n")
-
-    runtime.bus.listen(DeviceHealth, on_health)
-
-    def final() -> None:
-        devs = {d.name: {"state": d.state.value, "reason": d.reason,
-                         "counters": dict(d.counters)}
-                for d in (runtime.gps, runtime.compass, runtime.thrusters)}
-        ctl = runtime.control
-        fh.write(json.dumps({"final": True, "wall": round(time.time(), 3), "devices": devs,
-                             "control": {"ticks": ctl.ticks, "faults": ctl.faults,
-                                         "saturated_ticks": ctl.saturated_ticks,
-                                         "period_jitter_hist": getattr(
-                                             ctl, "period_jitter_hist", None)}}) + "\n")
-        fh.close()
-
-    return final
-
-
 def cmd_run(args: argparse.Namespace) -> int:
-    from zarco_core.geodesy import LocalFrame
-    from zarco_runtime.config_file import load_runtime_config
-    from zarco_runtime.guidance.mission import build_legs
-    from zarco_runtime.runtime import Runtime
+    from zarco_runtime.vessel import run_vessel
 
-    cfg, mission = load_runtime_config(args.config, args.set)
-    o = cfg.origin
-    legs = build_legs(mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)) if mission else []
-    runtime = Runtime(cfg, legs)
-    final = _status_file(args.status, runtime) if args.status else None
+    return run_vessel(args.config, args.set, args.status)
 
-    async def main() -> None:
-        task = asyncio.current_task()
-        loop = asyncio.get_running_loop()
-        assert task is not None
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, task.cancel)
+
+def cmd_ctl(args: argparse.Namespace) -> int:
+    """``zarco ctl``: one command to a running runtime over its local socket."""
+    import socket
+
+    if args.name == "status":
+        req: dict[str, Any] = {"name": "status"}
+    else:
         try:
-            await runtime.run()
-        except asyncio.CancelledError:
-            logging.getLogger("zarco").info("stopping: signal received")
-        finally:
-            if final is not None:
-                final()
-
-    asyncio.run(main())
+            cmd_args = json.loads(args.args) if args.args else {}
+        except json.JSONDecodeError as exc:
+            print(f"zarco ctl: ARGS is not JSON: {exc}", file=sys.stderr)
+            return 2
+        req = {"name": args.name, "args": cmd_args}
+    try:
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.settimeout(5.0)
+            s.connect(args.socket)
+            s.sendall((json.dumps(req) + "\n").encode())
+            buf = b""
+            while not buf.endswith(b"\n"):
+                chunk = s.recv(65536)
+                if not chunk:
+                    break
+                buf += chunk
+    except OSError as exc:
+        print(f"zarco ctl: {args.socket}: {exc}", file=sys.stderr)
+        return 2
+    reply = json.loads(buf or b"{}")
+    print(json.dumps(reply, indent=None if args.name != "status" else 2))
+    if args.name != "status" and not reply.get("ok"):
+        print(f"zarco ctl: refused: {reply.get('reason')}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -95,9 +68,21 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run on the vessel (real devices)")
     r.add_argument("--config", required=True, help="runtime TOML (config/zarco.toml)")
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
-    r.add_argument("--status", metavar="FILE.jsonl", help="append device health transitions "
-                   "(JSON lines, with counters) here, and every device's counters on exit")
+    r.add_argument("--status", metavar="FILE.jsonl", help="append the 1 Hz status snapshot "
+                   "and every event here (JSON lines), and a final line on exit")
     r.set_defaults(func=cmd_run)
+
+    c = sub.add_parser("ctl", help="send a command to a running runtime (local socket)",
+                       description="Send one command to the supervisor of a running "
+                       "`zarco run` over its supervisor.control_socket and print its "
+                       "acknowledgement (exit 1 if refused). NAME: stop, mode, mission, "
+                       "follow, thrust, resume, arm, disarm, or status (the latest status "
+                       "snapshot). ARGS: the command's arguments as JSON, e.g. "
+                       "'{\"mode\": \"hold\"}'.")
+    c.add_argument("--socket", required=True, help="the runtime's control socket")
+    c.add_argument("name", help="command name, or status")
+    c.add_argument("args", nargs="?", default="", help="arguments as a JSON object")
+    c.set_defaults(func=cmd_ctl)
 
     for ep in _tool_commands(argv):
         ep.load()(sub)
@@ -105,7 +90,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 
 #: sub-commands of this module; any other comes from a ``zarco.commands`` entry point
-BUILTIN = ("run",)
+BUILTIN = ("run", "ctl")
 
 
 def _tool_commands(argv: list[str] | None) -> list[Any]:

@@ -22,20 +22,27 @@ from zarco_core.vessel import (
 )
 from zarco_runtime.control.settings import XTRACK_RATE_TAU_S, Control, xtrack_rate_tau_s
 from zarco_runtime.guidance.follow import FollowSettings
-from zarco_runtime.guidance.settings import Guidance
+from zarco_runtime.guidance.settings import Guidance, HoldSettings
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.navigation.settings import Navigation
-from zarco_runtime.supervision.settings import Failsafe
+from zarco_runtime.supervision.settings import Failsafe, Geofence, Supervisor
 from zarco_runtime.tracking.params import TrackerParams
 
 
 @dataclass(slots=True)
 class Devices:
-    gps: Device = spec(lambda: Device(url="sim://gps"))
-    compass: Device = spec(lambda: Device(url="sim://compass"))
-    thrusters: Device = spec(lambda: Device(url="sim://thrusters"))
-    buoy: Device = spec(lambda: Device(url="sim://buoy", enabled=False, stale_s=5.0),
+    """The vessel's devices.  Every enabled device needs its ``url`` (a serial
+    path, ``serial://``, ``tcp://HOST:PORT``); two devices cannot share one."""
+
+    gps: Device = spec(Device, doc="RTK GPS receiver (NMEA 0183; RTCM3 in)")
+    compass: Device = spec(Device, doc="compass/IMU (NMEA 0183)")
+    thrusters: Device = spec(Device, doc="thruster controller ($PZTHR out, $PZTHS in)")
+    buoy: Device = spec(lambda: Device(enabled=False, stale_s=5.0),
                         doc="radio feed of the LBL listening buoy ($PZBAE, $PZBST)")
+
+    def items(self) -> list[tuple[str, Device]]:
+        return [("gps", self.gps), ("compass", self.compass), ("thrusters", self.thrusters),
+                ("buoy", self.buoy)]
 
 
 @dataclass(slots=True)
@@ -52,7 +59,10 @@ class RuntimeConfig:
     follow: FollowSettings = spec(FollowSettings)
     tracker: TrackerParams = spec(TrackerParams)
     ekf: EkfSettings = spec(EkfSettings)
+    hold: HoldSettings = spec(HoldSettings)
+    supervisor: Supervisor = spec(Supervisor)
     failsafe: Failsafe = spec(Failsafe)
+    geofence: Geofence = spec(Geofence)
 
 
 __all__ = [

@@ -38,6 +38,18 @@ class ScenarioMeta:
 
 
 @dataclass(slots=True)
+class ScriptedCommand:
+    """A command the scenario sends to the supervisor at ``at_s`` (``[[commands]]``),
+    as an operator would: ``name`` and ``args`` as in the shore protocol
+    (``name = "mode"``, ``args = {mode = "hold"}``)."""
+
+    at_s: float = spec(0.0, "s", "when, seconds after the start", min=0.0, max=1e6)
+    name: str = spec("stop", "", "command", choices=["stop", "mode", "mission", "follow",
+                                                     "thrust", "resume", "arm", "disarm"])
+    args: dict[str, Any] = spec(dict, "", "the command's arguments")
+
+
+@dataclass(slots=True)
 class Scenario:
     scenario: ScenarioMeta = spec(ScenarioMeta)
     world: WorldParams = spec(WorldParams)
@@ -46,7 +58,10 @@ class Scenario:
     auv: AuvParams | None = spec(None, "", "the simulated AUV (follow scenarios)")
     lbl: LblParams | None = spec(None, "", "the simulated LBL network and buoy (follow "
                                  "scenarios)")
-    faults: list[FaultSpec] = spec(list, "", "fault schedule ([[faults]]): zarco hil only")
+    faults: list[FaultSpec] = spec(list, "", "fault schedule ([[faults]]), in zarco sim and "
+                                   "zarco hil alike")
+    commands: list[ScriptedCommand] = spec(list, "", "commands sent at their times "
+                                           "([[commands]])")
 
 
 def load_scenario(path: str | Path, overrides: list[str] | None = None,
@@ -61,11 +76,16 @@ def load_scenario(path: str | Path, overrides: list[str] | None = None,
         if seed < 0:
             raise ConfigError(file, "scenario.seed", f"must be ≥ 0, got {seed}")
         scn.scenario.seed = seed
-    if scn.mission.kind == "follow":
+    if scn.mission.kind == "follow" or any(c.name == "follow" for c in scn.commands):
         if scn.auv is None or scn.lbl is None:
             raise ConfigError(file, "mission.kind",
-                              "a follow mission needs the [auv] and [lbl] tables")
+                              "following the AUV needs the [auv] and [lbl] tables")
         scn.runtime.devices.buoy.enabled = True
+    if scn.mission.autostart is None:
+        scn.mission.autostart = True  # a scenario starts its mission by default
+    for name, dev in scn.runtime.devices.items():
+        if not dev.url:
+            dev.url = f"sim://{name}"
     if "origin" not in data.get("runtime", {}):
         w = scn.world
         scn.runtime.origin.lat_deg = w.origin_lat_deg

@@ -26,9 +26,18 @@ from zarco_core.auv_messages import AuvFix, AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, run_virtual
 from zarco_core.geodesy import LocalFrame
-from zarco_core.messages import Fault, GuidanceStatus, NavState, ThrusterCommand
-from zarco_runtime.guidance.mission import Leg, build_legs
+from zarco_core.messages import (
+    CommandAck,
+    Event,
+    Fault,
+    GuidanceStatus,
+    NavState,
+    ThrusterCommand,
+)
+from zarco_runtime.guidance.mission import Leg, Mission, build_legs
 from zarco_runtime.runtime import Runtime
+from zarco_runtime.supervision.local import LocalCommands
+from zarco_runtime.supervision.supervisor import Boot
 from zarco_tools.follow_report import follow_figures
 from zarco_tools.scenario import Scenario
 from zarco_tools.sim_report import TrackLog, line_figures
@@ -49,14 +58,25 @@ class SimResult:
     extra: dict[str, Any]
 
 
+def boot_mission(scn: Scenario, legs: list[Leg]) -> Boot:
+    """The scenario's mission as the runtime's boot mission."""
+    if scn.mission.kind == "follow":
+        mission: Mission | None = Mission("follow", name=scn.scenario.name)
+    elif scn.mission.kind == "lines" and legs:
+        mission = Mission("lines", tuple(legs), scn.scenario.name)
+    else:
+        mission = None
+    return Boot(mission, bool(scn.mission.autostart))
+
+
 async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
                     progress: ProgressFn | None, counters: dict[str, Any]) -> None:
     world = SimWorld(scn.world, scn.scenario.seed)
     clock = Clock(utc_offset_s=world.utc_epoch_s(0.0))
     bus = Bus()
     ports = SimPorts()
-    backend = SimBackend(world, ports, clock)
-    follow = scn.mission.kind == "follow"
+    backend = SimBackend(world, ports, clock, scn.faults, scn.scenario.seed)
+    follow = scn.mission.kind == "follow" or scn.runtime.devices.buoy.enabled
     acoustics: AcousticWorld | None = None
     if follow and scn.auv is not None and scn.lbl is not None:
         acoustics = AcousticWorld(scn.lbl, Auv(scn.auv), scn.scenario.seed + 1_000_003,
@@ -66,13 +86,24 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         counters["acoustics"] = acoustics
         bus.tap(lambda m: counters.setdefault("auv_msgs", []).append(m)
                 if isinstance(m, (AuvFix, AuvTrack)) else None)
-    runtime = Runtime(scn.runtime, legs, bus, clock, ports=ports,
-                      mode="follow" if follow else "lines")
+    runtime = Runtime(scn.runtime, bus, clock, ports, boot_mission(scn, legs))
+    counters["runtime"] = runtime
     guid = bus.latest(GuidanceStatus)
     cmd = bus.latest(ThrusterCommand)
     faults: list[str] = []
     bus.tap(lambda m: faults.append(m.reason) if isinstance(m, Fault) else None)
+    events: list[Event] = counters.setdefault("events", [])
+    bus.listen(Event, events.append)
+    acks: list[CommandAck] = counters.setdefault("acks", [])
+    bus.listen(CommandAck, acks.append)
     limit = scn.scenario.max_duration_s
+    done = asyncio.Event()
+
+    def on_guidance(g: GuidanceStatus) -> None:
+        if g.mode == "lines" and g.complete and not scn.commands:
+            done.set()
+
+    bus.listen(GuidanceStatus, on_guidance)
 
     every = int(max(1, 10 * scn.scenario.record_hz))
     auv_log: list[tuple[float, float, float, float]] = counters.setdefault("auv_log", [])
@@ -99,9 +130,14 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
             progress(t, limit, g.leg if g else 0, len(legs))
 
     backend.add_periodic(scn.scenario.record_hz, record)
+    local = LocalCommands(bus, clock, source="scenario")
+
+    async def script() -> None:
+        for c in sorted(scn.commands, key=lambda c: c.at_s):
+            await clock.sleep_until(c.at_s)
+            await local.send(c.name, dict(c.args))
 
     async def supervisor() -> None:
-        done = runtime.control.complete if not follow else asyncio.Event()
         try:
             await asyncio.wait_for(done.wait(), timeout=limit)
             counters["stop"] = "mission complete"
@@ -115,23 +151,26 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
             for name, fn in backend.tasks():
                 tg.create_task(fn(), name=f"sim.{name}")
             tg.create_task(runtime.run(), name="runtime")
+            tg.create_task(script(), name="sim.script")
             tg.create_task(supervisor(), name="sim.supervisor")
     except* _Stop:
         pass
-    counters["control_ticks"] = runtime.control.ticks
-    counters["saturated_ticks"] = runtime.control.saturated_ticks
+    ctl = runtime.live.control
+    counters["control_ticks"] = ctl.ticks if ctl else 0
+    counters["saturated_ticks"] = ctl.saturated_ticks if ctl else 0
     counters["faults"] = sorted(set(faults))
     counters["devices"] = {
         "gps": dict(runtime.gps.counters),
         "compass": dict(runtime.compass.counters),
-        "thrusters": dict(runtime.thrusters.counters),
+        "thrusters": dict(runtime._thrusters.counters) if runtime._thrusters else {},
     }
     counters["sim_thruster_controller"] = backend.counters
-    ctl = world.thrusters
-    counters["last_command"] = (ctl.u1, ctl.u2)
-    if runtime.buoy is not None and runtime.tracking is not None:
+    counters["sim_events"] = backend.events
+    wt = world.thrusters
+    counters["last_command"] = (wt.u1, wt.u2)
+    if runtime.cfg.devices.buoy.enabled and runtime.live.tracking is not None:
         counters["devices"]["buoy"] = dict(runtime.buoy.counters)
-        counters["tracker"] = runtime.tracking.tracker.counters()
+        counters["tracker"] = runtime.live.tracking.tracker.counters()
 
 
 #: navigation errors are counted from this time (s): the first fixes and headings

@@ -52,7 +52,7 @@ from zarco_core.config import spec
 
 FAULT_KINDS = ("unplug", "noise", "truncate", "bad_checksum", "split", "silence", "fix",
                "freeze")
-FAULT_DEVICES = ("gps", "compass", "thrusters")
+FAULT_DEVICES = ("gps", "compass", "thrusters", "buoy")
 #: NMEA-looking noise (a cable picking up another talker, a wrong baud rate)
 ASCII_NOISE = b"$$GPNM,,,,..**0123456789ABCDEF\r\n"
 

@@ -17,14 +17,42 @@ class SimPorts:
 
     def __init__(self) -> None:
         self._ports: dict[str, MemoryTransport] = {}
+        self._devices: dict[str, MemoryTransport] = {}
+        self._unplugged: set[str] = set()
 
     def create(self, name: str) -> MemoryTransport:
         """Create the link ``name``; returns the *device* end."""
         dev, rt = memory_link(name)
         self._ports[name] = rt
+        self._devices[name] = dev
+        return dev
+
+    def device_end(self, name: str) -> MemoryTransport:
+        """The device end of link ``name`` as it is now (a replug makes a new one)."""
+        return self._devices[name]
+
+    def plugged(self, name: str) -> bool:
+        return name not in self._unplugged
+
+    def unplug(self, name: str) -> None:
+        """The device goes away: both ends close, opening it fails until :meth:`replug`."""
+        if name in self._ports and name not in self._unplugged:
+            self._unplugged.add(name)
+            self._devices[name]._rx.close()
+            self._devices[name]._tx.close()
+
+    def replug(self, name: str) -> MemoryTransport:
+        """The device comes back at the same URL (a fresh link); returns its device end."""
+        self._unplugged.discard(name)
+        listener = self._devices[name]._rx.listener if name in self._devices else None
+        dev = self.create(name)
+        if listener is not None:
+            dev.on_receive(listener)
         return dev
 
     def runtime_end(self, name: str) -> MemoryTransport:
+        if name in self._unplugged:
+            raise TransportError(f"sim://{name}: no such device (unplugged)")
         try:
             return self._ports[name]
         except KeyError:
@@ -33,4 +61,9 @@ class SimPorts:
     async def open(self, url: str, baudrate: int) -> Transport:
         if not url.startswith("sim://"):
             raise TransportError(f"{url or '(empty)'}: the simulator opens only sim:// ports")
-        return self.runtime_end(url[len("sim://"):])
+        name = url[len("sim://"):]
+        rt = self.runtime_end(name)
+        if rt._rx.closed or rt._tx.closed:  # reopened after a close: a fresh link
+            self.replug(name)
+            rt = self._ports[name]
+        return rt

@@ -35,6 +35,9 @@ from zarco_runtime.control.lqr import GainSchedule
 from zarco_runtime.control.settings import Control, xtrack_rate_tau_s
 from zarco_runtime.guidance.mission import Leg
 
+#: heading errors beyond this (rad) commit to the direction of the turn
+TURN_COMMIT_RAD = math.radians(150.0)
+
 
 class CurrentObserver:
     """Water current (NED, m/s) from GPS ground velocity and a surge model.
@@ -108,6 +111,22 @@ class LineController:
         self.s_int = 0.0
         self._lead = 0.0
         self._fresh_leg = True
+        self._turn = 0.0
+
+    def heading_error(self, psi_ref: float, psi: float) -> float:
+        """ψ_ref − ψ wrapped to (−π, π], but once the error is beyond
+        ``TURN_COMMIT_RAD`` the turn keeps its direction until it is under it:
+        at an error near 180° the wrapped error flips sign at every tick and the
+        boat would sit on the wrong heading, chattering, instead of turning."""
+        e = wrap(psi_ref - psi)
+        if abs(e) > TURN_COMMIT_RAD:
+            if self._turn == 0.0:
+                self._turn = 1.0 if e >= 0.0 else -1.0
+            elif e * self._turn < 0.0:
+                e += self._turn * math.tau
+        else:
+            self._turn = 0.0
+        return e
 
     def feedforward_n(self, u_w: float) -> float:
         """F_f(u): thrust (N) that balances surge damping at water speed u_w."""
@@ -162,7 +181,8 @@ class LineController:
         lim = math.radians(ctl.max_intercept_deg)
         offset = max(-lim, min(lim, math.atan(sigma)))
         psi_ref = wrap(psi0 - offset)
-        n_cmd = k_psi * wrap(psi_ref - nav.psi_rad) - k_r * nav.r_rps - k_n * self.nt
+        n_cmd = (k_psi * self.heading_error(psi_ref, nav.psi_rad) - k_r * nav.r_rps
+                 - k_n * self.nt)
         x_cmd = (self.feedforward_n(u_w_ref) + ctl.speed_kp * (u_ref - u_g)
                  + ctl.speed_ki * self.u_int)
         self._lead = 0.0
@@ -184,7 +204,8 @@ class LineController:
         self._lead = 0.0
         self._sigma_sat = True  # no cross-track integration while holding
         x_cmd = -ctl.speed_kp * u_g
-        n_cmd = ctl.heading_kp * wrap(psi_hold - nav.psi_rad) - ctl.heading_kd * nav.r_rps
+        n_cmd = (ctl.heading_kp * self.heading_error(psi_hold, nav.psi_rad)
+                 - ctl.heading_kd * nav.r_rps)
         return Demand(x_cmd, n_cmd, psi_hold, psi_hold)
 
     def commit(self, nav: NavState, alloc: Allocation) -> None:

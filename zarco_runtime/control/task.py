@@ -1,24 +1,27 @@
-"""Guidance and control task: at the control rate, NavState → thruster commands.
+"""Guidance and control task: at the control rate, the supervisor's directive and
+the NavState → thruster commands.
 
-Each tick: take the latest NavState (extrapolated to now), update the line
-guidance, compute the demands, allocate them to the thrusters through f⁻¹,
-and publish ThrusterCommand, ControlStatus and GuidanceStatus.
+Each tick: take the latest :class:`~zarco_runtime.guidance.directive.Directive`
+(the mode, with its mission or point), the latest NavState (extrapolated to
+now), run the mode's guidance, compute the demands, allocate them to the
+thrusters through f⁻¹ and publish ThrusterCommand (every tick, zero when
+there is nothing to do: the thruster controller expects a steady stream),
+ControlStatus and GuidanceStatus.
 
-Safety: a demand or command that is not finite becomes zero thrust and a
-Fault; an invalid navigation state (no valid fix or heading) for longer than
-``failsafe.nav_invalid_s`` commands zero thrust with the reason, and control
-resumes when it is valid again.  On GPS loss (``NavState.gps_age_s`` beyond
-``failsafe.gps_lost_after_s``) the ``failsafe.gps_lost`` policy holds thrust at
-zero or continues on dead reckoning for ``failsafe.gps_lost_continue_s``.
+The mode is the supervisor's; this task only executes it.  It still refuses,
+on its own, to drive on what it cannot trust: a directive older than
+``supervisor.directive_timeout_s`` counts as ``idle``, an estimate that is
+not valid gives zero thrust, and a demand or command that is not finite
+becomes zero thrust and a Fault.
 """
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import math
 from typing import TYPE_CHECKING
 
+from zarco_core.angles import wrap
 from zarco_core.auv_messages import AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
@@ -26,31 +29,41 @@ from zarco_core.messages import (
     ControlStatus,
     Fault,
     GuidanceStatus,
+    Mode,
     NavState,
     ThrusterCommand,
-    ThrusterStatus,
 )
 from zarco_core.thruster_map import ThrusterMap
 from zarco_runtime.control.allocation import ZERO, Allocation, allocate
 from zarco_runtime.control.line_tracking import Demand, LineController
 from zarco_runtime.control.settings import xtrack_rate_tau_s
+from zarco_runtime.guidance.directive import Directive, ManualThrust
 from zarco_runtime.guidance.follow import FollowGuidance
+from zarco_runtime.guidance.hold import HoldGuidance
 from zarco_runtime.guidance.lines import LineGuidance
-from zarco_runtime.guidance.mission import Leg
 
 if TYPE_CHECKING:
     from zarco_runtime.settings import RuntimeConfig
 
 log = logging.getLogger("zarco.control")
 #: histogram of the control period jitter |period − dt|: JITTER_BINS bins of
-#: JITTER_BIN_S, the last one for everything beyond (``zarco run --status``, HIL)
+#: JITTER_BIN_S, the last one for everything beyond (status, HIL)
 JITTER_BIN_S = 5e-5
 JITTER_BINS = 400
+#: largest manual command magnitude (normalised thruster scale)
+U_MAX = 100.0
+
+
+def _manual_allocation(u1: float, u2: float) -> Allocation:
+    """The operator's commands as an allocation (clamped, NaN → 0)."""
+    a = [max(-U_MAX, min(U_MAX, u)) if math.isfinite(u) else 0.0 for u in (u1, u2)]
+    return Allocation(0.0, 0.0, 0.0, 0.0, a[0], a[1], 0, 0)
 
 
 class ControlTask:
-    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock, legs: list[Leg],
-                 mode: str = "lines") -> None:
+    """Executes the supervisor's directive at ``control.rate_hz``."""
+
+    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock) -> None:
         self.cfg = cfg
         self.bus = bus
         self.clock = clock
@@ -59,23 +72,47 @@ class ControlTask:
         self.port = ThrusterMap.from_table(th.port.u, th.port.f_n)
         self.stbd = ThrusterMap.from_table(th.starboard.u, th.starboard.f_n)
         self.nav = bus.latest(NavState)
-        self.period_jitter_hist = [0] * (JITTER_BINS + 1)
-        self.status = bus.latest(ThrusterStatus)
-        self.guidance = LineGuidance(
-            legs, cfg.guidance.switching, math.radians(cfg.guidance.turn_rate_dps)
-        ) if legs else None
-        self.ctl = LineController(cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt,
-                                  xtrack_rate_tau_s(cfg.control, cfg.navigation.estimator))
-        self.mode = mode
-        self.follow = FollowGuidance(cfg.follow) if mode == "follow" else None
         self.track = bus.latest(AuvTrack)
+        self.directive = bus.latest(Directive)
+        self.manual = bus.latest(ManualThrust)
+        self.period_jitter_hist = [0] * (JITTER_BINS + 1)
+        self.ctl = self._new_controller()
+        self.seq = -1
+        self.mode = Mode.IDLE
+        self.lines: LineGuidance | None = None
+        self.follow: FollowGuidance | None = None
+        self.hold: HoldGuidance | None = None
         self._psi_hold: float | None = None
-        self.complete = asyncio.Event()
-        self.invalid_since: float | None = None
+        self.reason = "idle"
         self.fault = ""
         self.ticks = 0
         self.saturated_ticks = 0
         self.faults = 0
+
+    def _new_controller(self) -> LineController:
+        cfg = self.cfg
+        return LineController(cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt,
+                              xtrack_rate_tau_s(cfg.control, cfg.navigation.estimator))
+
+    # ------------------------------------------------------------- directive
+
+    def _enter(self, d: Directive) -> None:
+        """A new directive: build the guidance of its mode, reset the controllers."""
+        self.seq = d.seq
+        self.mode = d.mode
+        self.lines = self.follow = self.hold = None
+        self._psi_hold = None
+        cfg = self.cfg
+        self.ctl = self._new_controller()
+        if d.mode is Mode.LINES and d.mission is not None and d.mission.legs:
+            g = cfg.guidance
+            self.lines = LineGuidance(list(d.mission.legs), g.switching,
+                                      math.radians(g.turn_rate_dps))
+            self.lines.index = max(0, min(d.start_leg, len(d.mission.legs) - 1))
+        elif d.mode is Mode.FOLLOW:
+            self.follow = FollowGuidance(cfg.follow)
+        elif d.mode in (Mode.HOLD, Mode.RETURN) and d.point is not None:
+            self.hold = HoldGuidance(d.point, cfg.hold)
 
     def _raise_fault(self, t: float, reason: str) -> None:
         if reason != self.fault:
@@ -84,67 +121,74 @@ class ControlTask:
         self.fault = reason
         self.faults += 1
 
+    # ------------------------------------------------------------------ tick
+
     def tick(self, t: float) -> Allocation:
         """One control step at time ``t``; returns the allocation commanded."""
-        bus = self.bus
-        nav = self.nav.value
         self.ticks += 1
-        # the thruster controller answered once and has stopped: it may not be
-        # obeying (or its port is gone); command zero until it answers again
-        silent = self.cfg.failsafe.thruster_silent_s
-        st = self.status.value
-        if silent > 0.0 and st is not None and t - st.t > silent:
-            self._raise_fault(t, f"failsafe: no status from the thruster controller for "
-                                 f"{silent:g} s; zero thrust")
+        d = self.directive.value
+        if d is None or t - d.t > self.cfg.supervisor.directive_timeout_s:
+            if self.mode is not Mode.IDLE:
+                self._raise_fault(t, "no directive from the supervisor; zero thrust")
+            self.mode = Mode.IDLE
+            self.seq = -1
+            self.reason = "no directive from the supervisor"
             return ZERO
-        if nav is None or (self.guidance is None and self.follow is None):
+        if d.seq != self.seq:
+            self._enter(d)
+        mode = d.mode
+        if mode is Mode.IDLE:
+            self.reason = "idle"
             return ZERO
-        # extrapolate the estimate to now
+        if mode is Mode.MANUAL:
+            m = self.manual.value
+            if m is None or t > m.until or m.t < d.t:
+                self.reason = "manual: no operator command within the lease"
+                return ZERO
+            self.reason = "manual"
+            return _manual_allocation(m.u1, m.u2)
+        nav = self.nav.value
+        if nav is None:
+            self.reason = "no navigation estimate yet"
+            return ZERO
         age = t - nav.t
         x = nav.x_m + nav.vn_mps * age
         y = nav.y_m + nav.ve_mps * age
-        psi = nav.psi_rad + nav.r_rps * age
-        valid = nav.pos_valid and nav.heading_valid
-        if not valid:
-            if self.invalid_since is None:
-                self.invalid_since = t
-            if t - self.invalid_since >= self.cfg.failsafe.nav_invalid_s:
-                why = "no valid position" if not nav.pos_valid else "no valid heading"
-                self._raise_fault(t, f"failsafe: {why}; zero thrust")
-                return ZERO
-        else:
-            self.invalid_since = None
-        gps_age = nav.gps_age_s + age
-        fs = self.cfg.failsafe
-        if fs.gps_lost_after_s < gps_age < math.inf:  # before the first fix: pos_valid
-            if fs.gps_lost == "zero":
-                self._raise_fault(t, "failsafe: GPS lost (gps_lost = zero); zero thrust")
-                return ZERO
-            if gps_age > fs.gps_lost_continue_s:
-                self._raise_fault(t, f"failsafe: GPS lost for more than "
-                                     f"{fs.gps_lost_continue_s:g} s; zero thrust")
-                return ZERO
+        psi = wrap(nav.psi_rad + nav.r_rps * age)
+        if not (nav.pos_valid and nav.heading_valid):
+            self.reason = ("no valid position" if not nav.pos_valid else "no valid heading")
+            return ZERO
         nav_now = NavState(t, x, y, nav.vn_mps, nav.ve_mps, psi, nav.r_rps, nav.u_mps,
                            nav.v_mps, nav.lat_deg, nav.lon_deg, nav.fix, nav.pos_valid,
-                           nav.heading_valid, nav.cov, gps_age)
+                           nav.heading_valid, nav.cov, nav.gps_age_s + age,
+                           nav.current_n_mps, nav.current_e_mps)
+        self.reason = mode.value
+        if self.lines is not None:
+            return self._tick_lines(t, nav_now)
         if self.follow is not None:
             return self._tick_follow(t, nav_now)
-        ls = self.guidance.update(x, y)
-        bus.publish(GuidanceStatus(t, "lines", ls.leg.index, len(self.guidance.legs),
-                                   ls.along_m, ls.xtrack_m, ls.leg.course_rad,
-                                   ls.leg.speed_mps, ls.complete))
+        if self.hold is not None:
+            return self._tick_hold(t, nav_now, mode)
+        self.reason = f"{mode.value}: nothing to execute"
+        return ZERO
+
+    def _tick_lines(self, t: float, nav: NavState) -> Allocation:
+        g = self.lines
+        assert g is not None
+        ls = g.update(nav.x_m, nav.y_m)
+        self.bus.publish(GuidanceStatus(t, "lines", ls.leg.index, len(g.legs), ls.along_m,
+                                        ls.xtrack_m, ls.leg.course_rad, ls.leg.speed_mps,
+                                        ls.complete))
         if ls.complete:
-            self.complete.set()
+            self.reason = "mission complete"
             return ZERO
-        dem = self.ctl.step(nav_now, ls.leg, ls.xtrack_m)
-        return self._apply(t, nav_now, dem)
+        return self._apply(t, nav, self.ctl.step(nav, ls.leg, ls.xtrack_m))
 
     def _tick_follow(self, t: float, nav: NavState) -> Allocation:
-        assert self.follow is not None
+        f = self.follow
+        assert f is not None
         fcfg = self.cfg.follow
-        fs = self.follow.update(self.track.value, t, nav.x_m, nav.y_m)
-        if fs.mode != "follow" and fs.reason and fs.reason != self.fault:
-            log.info("follow: %s: %s", fs.mode, fs.reason)
+        fs = f.update(self.track.value, t, nav.x_m, nav.y_m)
         self.bus.publish(GuidanceStatus(t, f"follow:{fs.mode}", fs.leg.index if fs.leg else -1,
                                         0, fs.along_error_m, fs.d_m,
                                         fs.leg.course_rad if fs.leg else nav.psi_rad,
@@ -160,8 +204,22 @@ class ControlTask:
                                 fcfg.k_s, fcfg.k_i, fcfg.along_clamp_m)
         return self._apply(t, nav, dem)
 
+    def _tick_hold(self, t: float, nav: NavState, mode: Mode) -> Allocation:
+        h = self.hold
+        assert h is not None
+        hs = h.update(nav, nav.x_m, nav.y_m)
+        d = hs.leg.project(nav.x_m, nav.y_m)[1]
+        self.bus.publish(GuidanceStatus(t, f"{mode.value}:{hs.phase}", -1, 0, hs.along_m, d,
+                                        hs.leg.course_rad, hs.leg.speed_mps,
+                                        hs.phase == "station"))
+        hc = self.cfg.hold
+        if hs.phase == "station":
+            dem = self.ctl.step(nav, hs.leg, d, hs.along_m, hc.k_s, hc.k_i, hc.along_clamp_m)
+        else:
+            dem = self.ctl.step(nav, hs.leg, d)
+        return self._apply(t, nav, dem)
+
     def _apply(self, t: float, nav_now: NavState, dem: Demand) -> Allocation:
-        bus = self.bus
         alloc = allocate(dem.x_n, dem.n_nm, self.cfg.vessel.b_m, self.port, self.stbd)
         if alloc.fault or not (math.isfinite(alloc.u1) and math.isfinite(alloc.u2)):
             self._raise_fault(t, f"non-finite control output ({alloc.fault or 'command'}); "
@@ -173,8 +231,8 @@ class ControlTask:
         self.ctl.commit(nav_now, alloc)
         if alloc.saturated:
             self.saturated_ticks += 1
-        bus.publish(ControlStatus(t, dem.psi_ref_rad, alloc.x_n, alloc.n_nm, alloc.f1_n,
-                                  alloc.f2_n, alloc.u1, alloc.u2, alloc.saturated))
+        self.bus.publish(ControlStatus(t, dem.psi_ref_rad, alloc.x_n, alloc.n_nm, alloc.f1_n,
+                                       alloc.f2_n, alloc.u1, alloc.u2, alloc.saturated))
         return alloc
 
     async def run(self) -> None:
@@ -193,8 +251,7 @@ class ControlTask:
             try:
                 alloc = self.tick(t)
             except Exception as exc:  # never let a control bug leave thrust on
-                log.exception("control tick failed")
-                self._raise_fault(t, f"control error: {exc!r}; zero thrust")
-                alloc = ZERO
-            reason = self.fault
+                self.bus.publish(ThrusterCommand(t, 0.0, 0.0, f"control error: {exc!r}"))
+                raise
+            reason = self.fault or ("" if self.mode is not Mode.IDLE else "idle")
             self.bus.publish(ThrusterCommand(t, alloc.u1, alloc.u2, reason))

@@ -28,6 +28,8 @@ class MissionConfig:
     leg_speeds_mps: list[float] = spec(list, "m/s", "speed per leg (overrides speed_mps)",
                                        min=0.05, max=3.0)
     laps: int = spec(1, "", "repeat a closed mission this many times", min=1, max=10000)
+    autostart: bool | None = spec(None, "", "start this mission at boot (unset: false on the "
+                                  "vessel, true in a scenario)")
 
     def validate(self) -> None:
         if self.kind == "lines" and len(self.waypoints) < 2:
@@ -95,3 +97,26 @@ def build_legs(mc: MissionConfig, frame: LocalFrame) -> list[Leg]:
             (a, b), (c, d) = pts[i - 1], pts[i]
             legs.append(Leg(len(legs), a, b, c, d, sp))
     return legs
+
+
+@dataclass(frozen=True, slots=True)
+class Mission:
+    """A mission the supervisor can run: ``kind`` ``lines`` (its ``legs``, NED) or
+    ``follow`` (the AUV; no legs).  ``waypoints`` keeps the geodetic points
+    [lat_deg, lon_deg] it was given as (for ground stations and the state
+    file), ``name`` where it came from."""
+
+    kind: str
+    legs: tuple[Leg, ...] = ()
+    name: str = ""
+    waypoints: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def speed_mps(self) -> float:
+        return self.legs[0].speed_mps if self.legs else 0.0
+
+
+def legs_from_points(points: list[tuple[float, float]], speed_mps: float) -> tuple[Leg, ...]:
+    """Legs between consecutive NED points (m), all at ``speed_mps``."""
+    return tuple(Leg(i - 1, points[i - 1][0], points[i - 1][1], points[i][0], points[i][1],
+                     speed_mps) for i in range(1, len(points)))

@@ -7,9 +7,10 @@ the controller with no scheduling delay) and publishes the updated NavState.
 
 from __future__ import annotations
 
+import asyncio
 from typing import TYPE_CHECKING
 
-from zarco_core.bus import Bus
+from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock
 from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import GpsErrorStats, GpsFix, GpsVelocity, Heading, RateOfTurn
@@ -23,22 +24,28 @@ if TYPE_CHECKING:
 class Navigation:
     """Wires a navigator to the bus."""
 
-    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock) -> None:
+    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock,
+                 listen: Listen | None = None) -> None:
         o = cfg.origin
         frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
         var = cfg.devices.compass.variation_deg
         self.nav: SimpleNavigator | EkfNavigator
+        on = listen or bus.listen
         if cfg.navigation.estimator == "ekf":
             self.nav = EkfNavigator(cfg.ekf, frame, var)
-            bus.listen(GpsErrorStats, self.nav.on_gst)
+            on(GpsErrorStats, self.nav.on_gst)
         else:
             self.nav = SimpleNavigator(cfg.navigation, frame, var)
         self.bus = bus
         self.clock = clock
-        bus.listen(GpsFix, self._on_fix)
-        bus.listen(GpsVelocity, self.nav.on_velocity)
-        bus.listen(Heading, self._on_heading)
-        bus.listen(RateOfTurn, self._on_rate)
+        on(GpsFix, self._on_fix)
+        on(GpsVelocity, self.nav.on_velocity)
+        on(Heading, self._on_heading)
+        on(RateOfTurn, self._on_rate)
+
+    async def run(self) -> None:
+        """The estimator works in its listeners; this task only keeps it alive."""
+        await asyncio.Event().wait()
 
     def _publish(self, t: float) -> None:
         self.bus.publish(self.nav.state(t))

@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 
 from zarco_core.auv_messages import AcousticEvent, BuoyStatus
-from zarco_core.bus import Bus
+from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock
 from zarco_runtime.tracking.params import TrackerParams
 from zarco_runtime.tracking.tracker import AuvTracker
@@ -21,12 +21,14 @@ TICK_S = 1.0
 
 
 class Tracking:
-    def __init__(self, params: TrackerParams, bus: Bus, clock: Clock) -> None:
+    def __init__(self, params: TrackerParams, bus: Bus, clock: Clock,
+                 listen: Listen | None = None) -> None:
         self.tracker = AuvTracker(params)
         self.bus = bus
         self.clock = clock
-        bus.listen(AcousticEvent, self._on_event)
-        bus.listen(BuoyStatus, self.tracker.on_status)
+        on = listen or bus.listen
+        on(AcousticEvent, self._on_event)
+        on(BuoyStatus, self.tracker.on_status)
         self.fixes = 0
         self.tracks = 0
 
