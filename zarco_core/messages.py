@@ -415,3 +415,15 @@ class VesselStatus:
     components: dict[str, ComponentState]
     counters: dict[str, int]
     reason: str = ""
+
+
+@dataclass(slots=True)
+class RtcmCorrections:
+    """RTCM3 correction bytes for the GPS receiver from a corrections source
+    (``source``: ``shore``, ``mavlink``, or the GPS device's own
+    ``corrections_url``).  The GPS driver passes on only whole RTCM3 frames
+    with a valid CRC-24Q."""
+
+    t: float
+    source: str
+    data: bytes

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -75,7 +76,10 @@ def cmd_sim(args: argparse.Namespace) -> int:
     scn = load_scenario(args.scenario, args.set, args.seed)
     status = None if args.quiet else StatusLine()
     try:
-        res = run_scenario(scn, progress=status)
+        if args.realtime:
+            print(f"zarco sim: {scn.scenario.name} running in real time (links as configured); "
+                  "SIGTERM or Ctrl-C ends it", file=sys.stderr, flush=True)
+        res = run_scenario(scn, progress=status, realtime=args.realtime)
     finally:
         if status is not None:
             status.close()
@@ -148,6 +152,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     s.add_argument("--report", metavar="FILE.json", help="write the JSON report here")
     s.add_argument("--plot", metavar="FILE.png", help="write the track/cross-track plot here")
     s.add_argument("-q", "--quiet", action="store_true", help="no running status")
+    s.add_argument("--realtime", action="store_true",
+                   help="run the simulated boat at 1x on a real clock, with whichever links "
+                   "the scenario's [runtime] enables (shore, MAVLink), until SIGTERM/Ctrl-C "
+                   "(exit 0) or scenario.max_duration_s")
     s.set_defaults(func=cmd_sim)
 
     n = sub.add_parser(

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -88,6 +89,9 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
                 if isinstance(m, (AuvFix, AuvTrack)) else None)
     runtime = Runtime(scn.runtime, bus, clock, ports, boot_mission(scn, legs))
     counters["runtime"] = runtime
+    if counters.get("realtime"):
+        clock = Clock()  # real UTC: telemetry times are comparable with the shore's
+        runtime.clock = clock
     guid = bus.latest(GuidanceStatus)
     cmd = bus.latest(ThrusterCommand)
     faults: list[str] = []
@@ -138,9 +142,17 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
             await local.send(c.name, dict(c.args))
 
     async def supervisor() -> None:
+        realtime = counters.get("realtime", False)
+        stop = done
+        if realtime:  # the boat runs until a signal or the time limit
+            stop = asyncio.Event()
+            loop = asyncio.get_running_loop()
+            for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+                loop.add_signal_handler(sig, lambda s=sig: (counters.__setitem__(
+                    "stop", f"signal {s.name}"), stop.set()))
         try:
-            await asyncio.wait_for(done.wait(), timeout=limit)
-            counters["stop"] = "mission complete"
+            await asyncio.wait_for(stop.wait(), timeout=limit)
+            counters.setdefault("stop", "mission complete")
         except TimeoutError:
             counters["stop"] = f"time limit {limit} s"
         counters["sim_seconds"] = clock.now()
@@ -200,14 +212,42 @@ def command_step_rms(log: TrackLog) -> float:
     return round(float(np.sqrt(np.mean(du * du))), 3)
 
 
-def run_scenario(scn: Scenario, progress: ProgressFn | None = None) -> SimResult:
-    """Simulate ``scn`` to the end of its mission (or its time limit)."""
+class RealTimeLoop(asyncio.SelectorEventLoop):
+    """A normal event loop whose time starts at 0 when it is made (the simulated
+    world's time origin): ``zarco sim --realtime``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._t0 = time.monotonic()
+
+    def time(self) -> float:
+        return time.monotonic() - self._t0
+
+
+def run_scenario(scn: Scenario, progress: ProgressFn | None = None,
+                 realtime: bool = False) -> SimResult:
+    """Simulate ``scn`` to the end of its mission (or its time limit); with
+    ``realtime``, at 1× on a real clock until a signal or the time limit, with
+    whichever links the runtime's configuration enables."""
     o = scn.runtime.origin
     legs = build_legs(scn.mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m))
     log = TrackLog()
     counters: dict[str, Any] = {}
     w0 = time.perf_counter()
-    run_virtual(_simulate(scn, legs, log, progress, counters))
+    if realtime:
+        import datetime as dt
+
+        counters["realtime"] = True
+        scn.world.start_utc = dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+        loop = RealTimeLoop()
+        try:
+            asyncio.set_event_loop(loop)
+            loop.run_until_complete(_simulate(scn, legs, log, progress, counters))
+        finally:
+            asyncio.set_event_loop(None)
+            loop.close()
+    else:
+        run_virtual(_simulate(scn, legs, log, progress, counters))
     wall = time.perf_counter() - w0
     sim_s = float(counters.get("sim_seconds", log.t[-1] if log.t else 0.0))
     ticks = max(1, int(counters.get("control_ticks", 1)))
