@@ -41,10 +41,32 @@ def follow_summary(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def hold_summary(report: dict[str, Any]) -> str:
+    """The station-keeping figures of a run (empty if it never held)."""
+    if not report.get("holds"):
+        return ""
+    lines = [f"hold: distance to the point p50 {_fmt(report['hold_distance_p50_m'])}  "
+             f"p95 {_fmt(report['hold_distance_p95_m'])}  "
+             f"max {_fmt(report['hold_distance_max_m'])}  over {report['hold_seconds']:.0f} s; "
+             f"thrust {report['hold_thrust_mean_pct']:.1f} % mean, command steps "
+             f"{report['hold_command_step_rms']:.1f} % RMS"]
+    for h in report["holds"]:
+        lines.append(f"  at {h['t_s']:7.1f} s for {h['duration_s']:6.1f} s: p95 "
+                     f"{h['distance_p95_m']:.2f} m, max {h['distance_max_m']:.2f} m "
+                     f"({h['reason']})")
+    return "\n".join(lines)
+
+
 def summary(report: dict[str, Any]) -> str:
     """One screen of headline figures."""
+    hold = hold_summary(report)
+    if "xtrack_rms_m" not in report and "distance_median_m" not in report:
+        head = (f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})\n"
+                f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s "
+                f"wall = {report['speedup']:.0f}× real time")
+        return "\n".join(x for x in (head, hold) if x)
     if "xtrack_rms_m" not in report:
-        return follow_summary(report)
+        return "\n".join(x for x in (follow_summary(report), hold) if x)
     lines = [
         f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
         f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "

@@ -14,7 +14,7 @@ import math
 import signal
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,11 +35,13 @@ from zarco_core.messages import (
     NavState,
     ThrusterCommand,
 )
+from zarco_runtime.guidance.directive import Directive
 from zarco_runtime.guidance.mission import Leg, Mission, build_legs
 from zarco_runtime.runtime import Runtime
 from zarco_runtime.supervision.local import LocalCommands
 from zarco_runtime.supervision.supervisor import Boot
 from zarco_tools.follow_report import follow_figures
+from zarco_tools.hold_report import hold_figures
 from zarco_tools.scenario import Scenario
 from zarco_tools.sim_report import TrackLog, line_figures
 
@@ -100,6 +102,9 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     bus.listen(Event, events.append)
     acks: list[CommandAck] = counters.setdefault("acks", [])
     bus.listen(CommandAck, acks.append)
+    directives: list[Directive] = counters.setdefault("directives", [])
+    bus.listen(Directive, lambda d: directives.append(d)
+               if not directives or directives[-1].seq != d.seq else None)
     limit = scn.scenario.max_duration_s
     done = asyncio.Event()
 
@@ -164,6 +169,8 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
                 tg.create_task(fn(), name=f"sim.{name}")
             tg.create_task(runtime.run(), name="runtime")
             tg.create_task(script(), name="sim.script")
+            for i, extra in enumerate(counters.get("extra_tasks", [])):
+                tg.create_task(extra(runtime), name=f"sim.extra{i}")
             tg.create_task(supervisor(), name="sim.supervisor")
     except* _Stop:
         pass
@@ -224,15 +231,20 @@ class RealTimeLoop(asyncio.SelectorEventLoop):
         return time.monotonic() - self._t0
 
 
+ExtraTask = Callable[[Runtime], Coroutine[Any, Any, None]]
+
+
 def run_scenario(scn: Scenario, progress: ProgressFn | None = None,
-                 realtime: bool = False) -> SimResult:
+                 realtime: bool = False, extra_tasks: list[ExtraTask] | None = None
+                 ) -> SimResult:
     """Simulate ``scn`` to the end of its mission (or its time limit); with
     ``realtime``, at 1× on a real clock until a signal or the time limit, with
-    whichever links the runtime's configuration enables."""
+    whichever links the runtime's configuration enables.  ``extra_tasks`` run beside
+    the runtime (given it): a test's or benchmark's fake operator, say."""
     o = scn.runtime.origin
     legs = build_legs(scn.mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m))
     log = TrackLog()
-    counters: dict[str, Any] = {}
+    counters: dict[str, Any] = {"extra_tasks": list(extra_tasks or [])}
     w0 = time.perf_counter()
     if realtime:
         import datetime as dt
@@ -258,8 +270,9 @@ def run_scenario(scn: Scenario, progress: ProgressFn | None = None,
         "sim_seconds": round(sim_s, 3),
         "wall_seconds": round(wall, 3),
         "speedup": round(sim_s / wall, 1) if wall > 0 else math.inf,
-        **(line_figures(log, legs) if scn.mission.kind != "follow"
-           else follow_figures(log, counters)),
+        **(line_figures(log, legs) if scn.mission.kind == "lines"
+           else follow_figures(log, counters) if scn.mission.kind == "follow" else {}),
+        **hold_figures(log, counters.get("directives", [])),
         **nav_figures(counters.get("nav_err", [])),
         "saturation_fraction": counters.get("saturated_ticks", 0) / ticks,
         "command_step_rms": command_step_rms(log),

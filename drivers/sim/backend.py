@@ -52,6 +52,7 @@ class SimBackend:
         self._framer = NmeaFramer()
         ports.device_end("thrusters").on_receive(self._on_thruster_bytes)
         self._last_noise: dict[str, float] = {}
+        self._moving = False
         w = world
         self._devices: list[tuple[float, Emitter]] = [
             (w.params.gps.rate_hz, self._gps),
@@ -143,4 +144,8 @@ class SimBackend:
                 self.counters[exc.reason] += 1
                 continue
             self.counters["commands"] += 1
+            moving = u1 != 0.0 or u2 != 0.0
+            if moving != self._moving:  # thrust on/off as the controller sees it
+                self._moving = moving
+                self.events.append((t, "thrusters", "thrust" if moving else "zero"))
             self.world.command(t, u1, u2)

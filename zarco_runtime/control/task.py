@@ -83,6 +83,8 @@ class ControlTask:
         self.follow: FollowGuidance | None = None
         self.hold: HoldGuidance | None = None
         self._psi_hold: float | None = None
+        self._still_leg = 0
+        self._still_int = 0.0
         self.reason = "idle"
         self.fault = ""
         self.ticks = 0
@@ -213,7 +215,17 @@ class ControlTask:
                                         hs.leg.course_rad, hs.leg.speed_mps,
                                         hs.phase == "station"))
         hc = self.cfg.hold
-        if hs.phase == "station":
+        if hs.phase == "station" and hs.still:
+            # nothing to steer against: hold the line's heading, PI on the along-line
+            # distance to the point (forward or astern)
+            lead = max(-hc.along_clamp_m, min(hc.along_clamp_m, hs.along_m))
+            if hs.leg.index != self._still_leg:
+                self._still_leg, self._still_int = hs.leg.index, 0.0
+            self._still_int += lead * self.dt
+            hd = self.ctl.hold(nav, hs.leg.course_rad)
+            dem = Demand(hd.x_n + hc.k_s * lead + hc.k_i * self._still_int, hd.n_nm,
+                         hd.psi_ref_rad, hd.psi0_rad)
+        elif hs.phase == "station":
             dem = self.ctl.step(nav, hs.leg, d, hs.along_m, hc.k_s, hc.k_i, hc.along_clamp_m)
         else:
             dem = self.ctl.step(nav, hs.leg, d)

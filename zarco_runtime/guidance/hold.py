@@ -31,12 +31,14 @@ STATION_LEG0 = -100
 class HoldState:
     """One instant of station keeping: ``phase`` ``transit`` or ``station``,
     ``leg`` to track, ``along_m`` how far the point is ahead along it (m),
-    ``distance_m`` from the point."""
+    ``distance_m`` from the point; ``still``: no current to steer against (hold
+    the heading of the leg rather than steer onto it)."""
 
     phase: str
     leg: Leg
     along_m: float
     distance_m: float
+    still: bool = False
 
 
 class HoldGuidance:
@@ -50,17 +52,27 @@ class HoldGuidance:
         self._station_id = STATION_LEG0
         self._transit: Leg | None = None
 
-    def _station_course(self, nav: NavState) -> float:
+    def _station_course(self, nav: NavState, x: float, y: float) -> float:
         cn, ce = nav.current_n_mps, nav.current_e_mps
+        px, py = self.point
         if math.hypot(cn, ce) >= self.cfg.current_min_mps:
             upstream = math.atan2(-ce, -cn)
             if (self._course is None or abs(math.remainder(upstream - self._course, math.tau))
                     > math.radians(self.cfg.realign_deg)):
                 self._course = upstream
                 self._station_id -= 1
-        elif self._course is None:
+            return self._course
+        # still water: nothing to steer against; keep the arrival heading and the
+        # along-line position until the boat has drifted still_relay_m from the
+        # point, then face the point and close in
+        if self._course is None:
             self._course = nav.psi_rad
             self._station_id -= 1
+        if math.hypot(px - x, py - y) > self.cfg.still_relay_m:
+            bearing = math.atan2(py - y, px - x)
+            if abs(math.remainder(bearing - self._course, math.tau)) > math.radians(20.0):
+                self._course = bearing
+                self._station_id -= 1
         return self._course
 
     def update(self, nav: NavState, x: float, y: float) -> HoldState:
@@ -84,9 +96,10 @@ class HoldGuidance:
         if self.phase != "station":
             self.phase = "station"
             self._course = None
-        course = self._station_course(nav)
+        course = self._station_course(nav, x, y)
         c, s = math.cos(course), math.sin(course)
         h = STATION_HALF_LENGTH_M
         leg = Leg(self._station_id, px - h * c, py - h * s, px + h * c, py + h * s, 0.0)
         along = (px - x) * c + (py - y) * s
-        return HoldState("station", leg, along, dist)
+        still = math.hypot(nav.current_n_mps, nav.current_e_mps) < cfg.current_min_mps
+        return HoldState("station", leg, along, dist, still)

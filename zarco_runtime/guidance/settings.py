@@ -27,7 +27,8 @@ class HoldSettings:
     kept by the line-tracking steering law), position along that line by a
     PI on the along-track distance to the point (surge forward or astern).
     With less current than ``current_min_mps`` there is nothing to point
-    into and the heading on arrival is kept.
+    into: the boat keeps its heading and its along-line position until it has
+    drifted ``still_relay_m`` from the point, then faces the point and closes in.
     """
 
     station_radius_m: float = spec(4.0, "m", "closer than this to the point: station "
@@ -40,6 +41,8 @@ class HoldSettings:
     current_min_mps: float = spec(0.08, "m/s", "estimated current below this: keep the "
                                   "arrival heading instead of pointing into the current",
                                   min=0.0, max=2.0)
+    still_relay_m: float = spec(1.0, "m", "in still water, drifted this far from the point: "
+                                "turn to face it and close in", min=0.1, max=100.0)
     realign_deg: float = spec(20.0, "deg", "re-lay the station line when the current's "
                               "direction moves by more than this", min=1.0, max=180.0)
     k_s: float = spec(20.0, "N/m", "surge force per metre the point is ahead", min=0.0,
