@@ -134,6 +134,8 @@ class Runtime:
         follow = frozenset({"buoy", "tracking"})
         self.live.supervisor = Supervisor(self.cfg, self.bus, self.clock, ctx, self.boot,
                                           self.caps, self.counters, CONTROL_PATH | follow)
+        # a supervisor restarted after a failure boots idle: no second autostart
+        self.boot = Boot(self.boot.mission, autostart=False)
         return self.live.supervisor
 
     # --------------------------------------------------------------- status
