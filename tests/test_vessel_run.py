@@ -11,6 +11,7 @@ import json
 import os
 import select
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -107,7 +108,8 @@ def test_a_mission_that_needs_a_disabled_device_is_refused(tmp_path: Path) -> No
 kind = "lines"
 waypoints = [[0.0, 0.0], [10.0, 0.0]]
 """)
-    text = cfg.read_text().replace('[devices.thrusters]\n', '[devices.thrusters]\nenabled = false\n')
+    text = cfg.read_text().replace("[devices.thrusters]\n",
+                                   "[devices.thrusters]\nenabled = false\n")
     cfg.write_text(text)
     out = _run("run", "--config", str(cfg))
     assert out.returncode == 2
@@ -254,17 +256,19 @@ def test_every_stop_signal_leaves_zero_thrust_as_the_last_command(
         end = time.monotonic() + 5.0
         while time.monotonic() < end and not ctl.commands:
             ctl.poll()
-        ack = _ctl(tmp_path, "mode", {"mode": "manual"})
+        ack = _ctl(tmp_path, "mode", {"mode": "manual"})  # through `zarco ctl`
         assert ack["ok"], ack
-        # drive: thrust renewed within the lease, until the controller sees it
-        end = time.monotonic() + 10.0
-        while time.monotonic() < end and not any(c == (50.0, -30.0) for c in ctl.commands):
-            assert _ctl(tmp_path, "thrust", {"u1": 50.0, "u2": -30.0})["ok"]
-            for _ in range(4):
-                ctl.poll()
-        assert (50.0, -30.0) in ctl.commands
-        _ctl(tmp_path, "thrust", {"u1": 50.0, "u2": -30.0})
-        ctl.poll(0.1)
+        # drive: thrust renewed well within the lease, on one socket connection
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.connect(str(tmp_path / "control.sock"))
+            f = s.makefile("rw")
+            end = time.monotonic() + 10.0
+            while time.monotonic() < end and ctl.commands[-1:] != [(50.0, -30.0)]:
+                f.write(json.dumps({"name": "thrust", "args": {"u1": 50.0, "u2": -30.0}})
+                        + "\n")
+                f.flush()
+                assert json.loads(f.readline())["ok"]
+                ctl.poll(0.1)
         assert ctl.commands[-1] == (50.0, -30.0)  # under way when the signal comes
         p.send_signal(sig)
         end = time.monotonic() + 15.0
