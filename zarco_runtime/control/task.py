@@ -144,7 +144,7 @@ class ControlTask:
             return ZERO
         if mode is Mode.MANUAL:
             m = self.manual.value
-            if m is None or t > m.until or m.t < d.t:
+            if m is None or t > m.until or m.t < d.since:
                 self.reason = "manual: no operator command within the lease"
                 return ZERO
             self.reason = "manual"

@@ -19,7 +19,9 @@ from zarco_runtime.guidance.mission import Mission
 @dataclass(slots=True)
 class Directive:
     """The mode to execute, with its mission (lines: from leg ``start_leg``) or
-    its point (hold, return: NED metres).  ``reason`` says why (for status)."""
+    its point (hold, return: NED metres).  ``reason`` says why (for status);
+    ``since`` is when this directive was first given (``t`` is when it was last
+    republished)."""
 
     t: float
     seq: int
@@ -28,6 +30,11 @@ class Directive:
     start_leg: int = 0
     point: tuple[float, float] | None = None
     reason: str = ""
+    since: float = -1.0
+
+    def __post_init__(self) -> None:
+        if self.since < 0.0:
+            self.since = self.t
 
 
 @dataclass(slots=True)

@@ -649,7 +649,7 @@ class Supervisor:
             if now >= next_directive:
                 d = self.directive  # the same directive, still meant
                 self.directive = Directive(now, d.seq, d.mode, d.mission, d.start_leg,
-                                           d.point, d.reason)
+                                           d.point, d.reason, d.since)
                 self.bus.publish(self.directive)
                 next_directive = now + sup.directive_period_s
             if now >= next_status:

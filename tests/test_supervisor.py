@@ -1,0 +1,142 @@
+"""The supervisor, driven by scripted commands in the in-process simulator: the
+vessel boots idle, every command gets exactly one acknowledgement (accepted, or
+refused with a reason a person can read), missions run to their end and hold,
+``return`` goes home and holds, ``resume`` continues where the mission stopped,
+also after a restart (the state file)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from zarco_core.geodesy import LocalFrame
+from zarco_core.messages import CommandAck
+from zarco_tools.scenario import ScriptedCommand, load_scenario
+from zarco_tools.simulation import SimResult, run_scenario
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
+
+
+def _sim(commands: list[tuple[float, str, dict[str, Any]]], limit_s: float,
+         *overrides: str) -> SimResult:
+    scn = load_scenario(SCENARIOS / "rectangle.toml",
+                        ["mission.kind=idle", f"scenario.max_duration_s={limit_s}",
+                         "world.current.speed_mps=0.0", *overrides], 1)
+    scn.commands = [ScriptedCommand(at, name, args) for at, name, args in commands]
+    return run_scenario(scn)
+
+
+def _acks(res: SimResult) -> list[CommandAck]:
+    return list(res.extra["acks"])
+
+
+def _geo(n: float, e: float) -> list[float]:
+    from zarco_runtime.settings import Origin
+
+    o = Origin()
+    lat, lon, _ = LocalFrame(o.lat_deg, o.lon_deg).to_geodetic(n, e)
+    return [lat, lon]
+
+
+def test_boots_idle_and_refuses_with_reasons() -> None:
+    res = _sim([
+        (5.0, "thrust", {"u1": 10.0, "u2": 10.0}),
+        (5.5, "mode", {"mode": "lines"}),
+        (6.0, "follow", {}),
+        (6.5, "mode", {"mode": "sideways"}),
+        (7.0, "mission", {"waypoints": [[91.0, 0.0], [0.0, 0.0]]}),
+        (7.2, "mission", {"waypoints": [_geo(0, 0), [41.0, -8.0]]}),
+        (7.5, "mission", {"waypoints": [_geo(0, 0), _geo(30, 0)], "speed_mps": 9.0}),
+        (8.0, "mode", {"mode": "hold", "lat_deg": "north", "lon_deg": 0}),
+        (8.5, "warp", {}),
+        (9.0, "stop", {}),
+    ], 12.0)
+    acks = _acks(res)
+    assert len(acks) == 10  # exactly one acknowledgement each
+    reasons = [a.reason for a in acks]
+    assert [a.ok for a in acks] == [False] * 9 + [True]
+    assert reasons[0] == "not in manual mode"
+    assert reasons[1] == "no mission loaded"
+    assert reasons[2].startswith("buoy feed disabled")
+    assert reasons[3].startswith("unknown mode 'sideways'")
+    assert reasons[4] == "waypoint 0: not a latitude, longitude: [91.0, 0.0]"
+    assert reasons[5].startswith("waypoint 1 is") and "km from the origin" in reasons[5]
+    assert reasons[6].startswith("speed_mps must be within")
+    assert reasons[7].startswith("bad arguments")
+    assert reasons[8] == "unknown command 'warp'"
+    # never moved: idle from boot, zero thrust all along
+    assert [d.mode.value for d in res.extra["directives"]] == ["idle"] * 2
+    assert max(abs(u) for u in res.log.u1 + res.log.u2) == 0.0
+
+
+def test_a_mission_runs_to_its_end_then_holds_at_its_last_waypoint() -> None:
+    wps = [_geo(0.0, 0.0), _geo(40.0, 0.0), _geo(40.0, -20.0)]
+    res = _sim([(5.0, "mission", {"waypoints": wps, "speed_mps": 1.2})], 150.0)
+    assert _acks(res)[0].ok and _acks(res)[0].mode == "lines"
+    modes = [(d.mode.value, d.reason) for d in res.extra["directives"]]
+    assert [m for m, _ in modes] == ["idle", "lines", "hold"]
+    assert "mission complete" in modes[-1][1]
+    hold = res.extra["directives"][-1]
+    assert hold.point is not None and math.hypot(hold.point[0] - 40.0, hold.point[1] + 20.0) < 0.5
+    # and it holds there
+    assert math.hypot(res.log.x[-1] - 40.0, res.log.y[-1] + 20.0) < 2.0
+
+
+def test_stop_then_resume_continues_the_same_leg() -> None:
+    wps = [_geo(0.0, 0.0), _geo(60.0, 0.0), _geo(60.0, -30.0)]
+    res = _sim([(5.0, "mission", {"waypoints": wps}),
+                (45.0, "stop", {}),
+                (50.0, "resume", {})], 60.0)
+    a = _acks(res)
+    assert [x.ok for x in a] == [True, True, True]
+    d = res.extra["directives"]
+    assert [x.mode.value for x in d] == ["idle", "lines", "idle", "lines"]
+    assert d[-1].start_leg == 0 and "resume" in d[-1].reason
+
+
+def test_the_last_mission_survives_a_restart_and_resume_continues_it(tmp_path: Path) -> None:
+    state = tmp_path / "state.json"
+    wps = [_geo(0.0, 0.0), _geo(30.0, 0.0), _geo(30.0, -30.0), _geo(0.0, -30.0)]
+    first = _sim([(5.0, "mission", {"waypoints": wps})], 45.0,
+                 f'runtime.supervisor.state_file="{state}"')
+    saved = json.loads(state.read_text())
+    assert saved["leg"] >= 1 and not saved["complete"]
+    # a new process: boots idle, knows the mission, continues it on `resume`
+    second = _sim([(5.0, "resume", {})], 10.0, f'runtime.supervisor.state_file="{state}"')
+    assert first.extra["directives"][-1].mode.value == "lines"
+    boot = [e.text for e in second.extra["events"] if e.kind == "mode"][0]
+    assert "can be resumed" in boot
+    d = second.extra["directives"]
+    assert d[0].mode.value == "idle"
+    assert d[-1].mode.value == "lines" and d[-1].start_leg == saved["leg"]
+
+
+def test_return_goes_home_and_holds() -> None:
+    res = _sim([(2.0, "mission", {"waypoints": [_geo(0.0, 0.0), _geo(60.0, 0.0)]}),
+                (40.0, "mode", {"mode": "return"})], 120.0)
+    d = res.extra["directives"]
+    assert [x.mode.value for x in d] == ["idle", "lines", "return", "hold"]
+    assert "arrived home" in d[-1].reason
+    home = d[2].point
+    assert home is not None and math.hypot(*home) < 1.0  # home: the first position
+    assert math.hypot(res.log.x[-1] - home[0], res.log.y[-1] - home[1]) < 2.0
+
+
+def test_waypoints_outside_the_geofence_are_refused() -> None:
+    res = _sim([(5.0, "mission", {"waypoints": [_geo(0.0, 0.0), _geo(80.0, 0.0)]})], 8.0,
+               "runtime.geofence.radius_m=50.0")
+    a = _acks(res)[0]
+    assert not a.ok and a.reason.startswith("waypoint 1 is outside the geofence")
+
+
+def test_manual_needs_its_lease_renewed() -> None:
+    res = _sim([(2.0, "mode", {"mode": "manual"}),
+                (3.0, "thrust", {"u1": 40.0, "u2": 40.0}),
+                (3.5, "thrust", {"u1": 40.0, "u2": 40.0})], 8.0)
+    assert all(a.ok for a in _acks(res))
+    t, u1 = res.log.t, res.log.u1
+    on = [ti for ti, u in zip(t, u1, strict=True) if u != 0.0]
+    # thrust from the first command to one lease after the last, then zero
+    assert on and min(on) >= 3.0 and 4.3 <= max(on) <= 4.6
