@@ -106,7 +106,7 @@ def test_the_last_mission_survives_a_restart_and_resume_continues_it(tmp_path: P
     # a new process: boots idle, knows the mission, continues it on `resume`
     second = _sim([(5.0, "resume", {})], 10.0, f'runtime.supervisor.state_file="{state}"')
     assert first.extra["directives"][-1].mode.value == "lines"
-    boot = [e.text for e in second.extra["events"] if e.kind == "mode"][0]
+    boot = next(e.text for e in second.extra["events"] if e.kind == "mode")
     assert "can be resumed" in boot
     d = second.extra["directives"]
     assert d[0].mode.value == "idle"
