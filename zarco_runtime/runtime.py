@@ -29,9 +29,10 @@ from drivers.transports import Ports, SystemPorts
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext, Factory, Runnable, Supervised
-from zarco_core.messages import ThrusterCommand
+from zarco_core.messages import HealthState, ThrusterCommand, VesselStatus
 from zarco_runtime.control.task import ControlTask
 from zarco_runtime.navigation.task import Navigation
+from zarco_runtime.sd_notify import Notifier, devices_opened
 from zarco_runtime.settings import RuntimeConfig
 from zarco_runtime.supervision.local import ControlSocket
 from zarco_runtime.supervision.supervisor import Boot, Capabilities, Supervisor
@@ -61,7 +62,8 @@ class Runtime:
     """Builds every component from a validated configuration (nothing starts on error)."""
 
     def __init__(self, cfg: RuntimeConfig, bus: Bus | None = None, clock: Clock | None = None,
-                 ports: Ports | None = None, boot: Boot | None = None) -> None:
+                 ports: Ports | None = None, boot: Boot | None = None,
+                 notify: tuple[str, int | None] | None = None) -> None:
         self.cfg = cfg
         self.bus = bus or Bus()
         self.clock = clock or Clock()
@@ -99,6 +101,32 @@ class Runtime:
             add("local", lambda ctx: ControlSocket(cfg.supervisor.control_socket, self.bus,
                                                    self.clock, ctx.listen))
         self.extra: list[tuple[str, Callable[[], object]]] = []
+        self.notifier: Notifier | None = None
+        if notify is not None:
+            self.notifier = Notifier(notify[0], notify[1], self._ticks, self._supervisor_ok,
+                                     devices_opened(self._device_states))
+            self.bus.listen(VesselStatus, self.notifier.on_status)
+            self.add_task("notify", self.notifier.run)
+
+    def _ticks(self) -> int:
+        c = self.live.control
+        return c.ticks if c is not None else 0
+
+    def _supervisor_ok(self) -> bool:
+        """The supervisor runs and has evaluated its failsafes within the last second."""
+        sup = self.live.supervisor
+        comp = next((c for c in self.components if c.name == "supervisor"), None)
+        return (sup is not None and comp is not None and comp.state == "running"
+                and self.clock.now() - sup.last_eval < 1.0)
+
+    def _device_states(self) -> list[HealthState]:
+        out = []
+        for name in ("gps", "compass", "thrusters", "buoy"):
+            dev = getattr(self.live, name)
+            if dev is not None:
+                out.append(HealthState.DISCONNECTED if dev.reason == "not opened yet"
+                           or dev.state is HealthState.DISCONNECTED else dev.state)
+        return out
 
     # ------------------------------------------------------------ factories
 

@@ -25,6 +25,7 @@ from typing import IO, Any
 
 from zarco_core.config import ConfigError
 from zarco_core.messages import Event, VesselStatus
+from zarco_runtime import sd_notify
 from zarco_runtime.config_file import boot_mission, check_runtime, load_runtime_config
 from zarco_runtime.instance_lock import InstanceLock, LockedError
 from zarco_runtime.runtime import Runtime
@@ -82,7 +83,7 @@ def run_vessel(config: str, overrides: list[str], status: str | None = None,
     file = config if not overrides else f"{config} (with --set)"
     check_runtime(cfg, mission, file)
     boot = boot_mission(cfg, mission, Path(config).stem)
-    runtime = Runtime(cfg, boot=boot)
+    runtime = Runtime(cfg, boot=boot, notify=sd_notify.from_environment())
     for hook in hooks or []:
         hook(runtime)
     lock = InstanceLock(device_urls(runtime))

@@ -158,6 +158,7 @@ class Supervisor:
         self.first_cmd_t: float | None = None
         self.heartbeat_t: float | None = None
         self.status_msg: VesselStatus | None = None
+        self.last_eval = -1e9
         self.acks = {"accepted": 0, "refused": 0}
         ctx.listen(Command, self.on_command)
         ctx.listen(Heading, self._on_heading)
@@ -531,6 +532,7 @@ class Supervisor:
 
     def evaluate(self, now: float) -> None:
         """One evaluation of the failsafe table (and of a pending autostart)."""
+        self.last_eval = now
         if self.home is None:
             p = self._position()
             if p is not None:
