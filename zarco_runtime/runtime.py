@@ -31,6 +31,7 @@ from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext, Factory, Runnable, Supervised
 from zarco_core.messages import ThrusterCommand
 from zarco_runtime.control.task import ControlTask
+from zarco_runtime.links.recorder.recorder import recorder_factory
 from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.settings import RuntimeConfig
 from zarco_runtime.supervision.local import ControlSocket
@@ -61,8 +62,10 @@ class Runtime:
     """Builds every component from a validated configuration (nothing starts on error)."""
 
     def __init__(self, cfg: RuntimeConfig, bus: Bus | None = None, clock: Clock | None = None,
-                 ports: Ports | None = None, boot: Boot | None = None) -> None:
+                 ports: Ports | None = None, boot: Boot | None = None,
+                 config_dir: str = ".") -> None:
         self.cfg = cfg
+        self.config_dir = config_dir  # relative paths of the configuration start here
         self.bus = bus or Bus()
         self.clock = clock or Clock()
         self.ports = ports or SystemPorts()
@@ -83,6 +86,9 @@ class Runtime:
         self._thrusters: ThrusterDriver | None = None
         self.components: list[Supervised] = []
         add = self._add
+        if cfg.record.enabled:
+            add("recorder", recorder_factory(cfg, self.bus, self.clock, self.boot, lambda: (
+                self.gps, self.compass, self.buoy, self._thrusters), self.config_dir))
         if dev.gps.enabled:
             add("gps", lambda ctx: self._keep("gps", self.gps))
         if dev.compass.enabled:

@@ -79,7 +79,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         if args.realtime:
             print(f"zarco sim: {scn.scenario.name} running in real time (links as configured); "
                   "SIGTERM or Ctrl-C ends it", file=sys.stderr, flush=True)
-        res = run_scenario(scn, progress=status, realtime=args.realtime)
+        res = run_scenario(scn, progress=status, realtime=args.realtime, record=args.record)
     finally:
         if status is not None:
             status.close()
@@ -103,6 +103,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
         print(f"\nreport: {args.report}")
     if args.plot:
         print(f"plot:   {args.plot}")
+    if args.record:
+        print(f"record: {args.record}")
     return 0
 
 
@@ -156,6 +158,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="run the simulated boat at 1x on a real clock, with whichever links "
                    "the scenario's [runtime] enables (shore, MAVLink), until SIGTERM/Ctrl-C "
                    "(exit 0) or scenario.max_duration_s")
+    s.add_argument("--record", metavar="FILE.mcap",
+                   help="record the run (every bus message, raw device bytes, the simulator's "
+                   "truth) into this MCAP file, as zarco run records (zarco log reads it)")
     s.set_defaults(func=cmd_sim)
 
     n = sub.add_parser(
