@@ -1,6 +1,7 @@
 """Sub-commands of ``zarco`` for simulation and evaluation: ``sim`` (the runtime
 against the simulated backend on the virtual clock), ``navreport`` (the
-navigation EKF over NMEA captures), ``decode`` and ``replay`` (NMEA captures).
+navigation EKF over NMEA captures), ``decode`` and ``replay`` (NMEA captures),
+``log`` (recordings: info, plot, export, replay).
 
 Registered through the ``zarco.commands`` entry point; the onboard ``zarco
 run`` never loads this module.
@@ -212,4 +213,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="play the capture K times (0: forever)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     r.set_defaults(func=cmd_replay)
+
+    from zarco_tools.log.cli import register_log
+
+    register_log(sub)
 

@@ -131,3 +131,44 @@ def rebuild(cls: type[T], d: dict[str, Any]) -> T:
         if isinstance(v, list):
             kw[k] = tuple(v)
     return cls(**kw)
+
+
+def recover(src: str, dst: str) -> tuple[int, str]:
+    """Copy every complete record of ``src`` (a file whose writer was killed) into
+    a finished MCAP file ``dst`` with its summary and indexes; returns the number
+    of messages and why ``src`` ended ("" if it was finished)."""
+    from mcap.writer import CompressionType, Writer
+
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    sids: dict[int, int] = {}
+    cids: dict[int, int] = {}
+    n = 0
+    why = "not finished"
+    with open(src, "rb") as fh, open(dst, "xb") as out:
+        w = Writer(out, compression=CompressionType.ZSTD)
+        w.start(profile="", library="zarco log fix (mcap-python)")
+        try:
+            for r in StreamReader(fh, skip_magic=False).records:
+                if isinstance(r, Schema):
+                    schemas[r.id] = r
+                elif isinstance(r, Channel):
+                    channels[r.id] = r
+                elif isinstance(r, Metadata):
+                    w.add_metadata(r.name, r.metadata)
+                elif isinstance(r, Footer):
+                    why = ""
+                elif isinstance(r, Message) and r.channel_id in channels:
+                    ch = channels[r.channel_id]
+                    if ch.id not in cids:
+                        sc = schemas.get(ch.schema_id)
+                        if sc is not None and sc.id not in sids:
+                            sids[sc.id] = w.register_schema(sc.name, sc.encoding, sc.data)
+                        cids[ch.id] = w.register_channel(ch.topic, ch.message_encoding,
+                                                         sids.get(ch.schema_id, 0), ch.metadata)
+                    w.add_message(cids[ch.id], r.log_time, r.data, r.publish_time, r.sequence)
+                    n += 1
+        except Exception as exc:  # the torn end of a killed writer's file
+            why = f"{type(exc).__name__}: {exc}"[:200]
+        w.finish()
+    return n, why
