@@ -9,6 +9,7 @@ closed: the boat does not need to move here).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -47,10 +48,8 @@ class Feeder(threading.Thread):
 
     def _write(self, dev: str, data: bytes) -> None:
         p = self.ports[dev]
-        try:
+        with contextlib.suppress(OSError):  # nobody reading: the bytes are lost
             os.write(p.master, data)
-        except OSError:  # nobody reading (the runtime is down): the bytes are lost
-            pass
 
     def run(self) -> None:
         t0 = time.monotonic()
@@ -65,7 +64,7 @@ class Feeder(threading.Thread):
                 self._write("gps", self.world.gps_bytes(t))
             if k % 4 == 0:
                 self._write("thrusters", self.world.thruster_status_bytes(t))
-            with __import__("contextlib").suppress(OSError):
+            with contextlib.suppress(OSError):
                 os.read(self.ports["thrusters"].master, 65536)  # the runtime's commands
 
 
@@ -150,10 +149,9 @@ def test_kill_9_restart_keeps_history_and_the_last_mission(rig) -> None:  # type
     (first,) = sorted(rec_dir.glob("*.mcap"))
     # mcap's own streaming reader reads the unfinished file up to its torn end
     n = 0
-    with first.open("rb") as fh:
-        with pytest.raises(EndOfFile):
-            for _ in NonSeekingReader(fh).iter_messages(log_time_order=False):
-                n += 1
+    with first.open("rb") as fh, pytest.raises(EndOfFile):
+        for _ in NonSeekingReader(fh).iter_messages(log_time_order=False):
+            n += 1
     assert n > 100
     rec = open_recording(str(first))
     last_ns = max(m.log_ns for m in iter_messages(rec))
