@@ -119,5 +119,7 @@ class ThrusterDriver(DeviceLink):
                 with contextlib.suppress(Exception):  # last words before the port closes
                     tr.write_nowait(ZERO)
                     self.counters["commands_sent"] += 1
+                    if self.raw is not None:
+                        self.raw("tx", self.clock.now(), ZERO)
                 with contextlib.suppress(Exception):
                     await tr.close()

@@ -53,7 +53,7 @@ from zarco_runtime.links.recorder.schema import (
     LOCATION_FIX_SCHEMA,
     OPTIONS,
     RAW_CHUNK_SCHEMA,
-    encoder,
+    json_default,
     message_schema,
 )
 from zarco_runtime.links.recorder.writer import BATCH, HEADER
@@ -68,6 +68,8 @@ log = logging.getLogger("zarco.recorder")
 DERIVED = {NavState: "vessel", AuvTrack: "auv"}
 #: in simulation, hand a batch over once it holds this many records
 SIM_BATCH = 4000
+#: loop turns a stopping recorder waits for the others' last messages
+SHUTDOWN_SPINS = 10
 #: how long a stopping runtime waits for the writer to finish its file (s)
 FINISH_TIMEOUT_S = 10.0
 
@@ -105,7 +107,10 @@ class Recorder:
         self.devices = devices or (lambda: ())
         self.base_dir = base_dir
         self.counters: Counter[str] = Counter()
-        self.pending: list[tuple[int, float, bytes]] = []
+        # the records waiting for the writer: channel, runtime time, bytes
+        self.chans: list[int] = []
+        self.times: list[float] = []
+        self.datas: list[bytes] = []
         self.channels: list[dict[str, Any]] = []
         self.kinds: dict[type, int] = {}
         self.on = [True]
@@ -130,22 +135,21 @@ class Recorder:
 
     def _make_tap(self) -> Callable[[Any], None]:
         kinds = self.kinds
-        append = self.pending.append
-        encode = encoder()
-        now = self.clock.now
+        chans, times, datas = self.chans.append, self.times.append, self.datas.append
+        dumps = orjson.dumps
         on = self.on
         register = self._register
 
         def tap(msg: Any) -> None:
+            # log time: the message's own time (every bus message has one), so the
+            # tap costs the encoding and three appends
             if on[0]:
                 ch = kinds.get(type(msg))
                 if ch is None:
                     ch = register(type(msg))
-                try:
-                    t = now()
-                except RuntimeError:  # published outside the event loop
-                    t = getattr(msg, "t", 0.0)
-                append((ch, t, encode(msg)))
+                chans(ch)
+                times(getattr(msg, "t", 0.0))
+                datas(dumps(msg, default=json_default, option=OPTIONS))
 
         return tap
 
@@ -176,12 +180,14 @@ class Recorder:
         raw = json.dumps(RAW_CHUNK_SCHEMA).encode()
         rx = self._channel(f"/raw/{device}/rx", "zarco.RawChunk", raw, raw=[device, "rx"])
         tx = self._channel(f"/raw/{device}/tx", "zarco.RawChunk", raw, raw=[device, "tx"])
-        append = self.pending.append
+        chans, times, datas = self.chans.append, self.times.append, self.datas.append
         on = self.on
 
         def hook(direction: str, t: float, data: bytes) -> None:
             if on[0]:
-                append((rx if direction == "rx" else tx, t, data))
+                chans(rx if direction == "rx" else tx)
+                times(t)
+                datas(data)
 
         return hook
 
@@ -268,18 +274,21 @@ class Recorder:
 
     def _batch(self) -> None:
         """Frame the pending records and queue them for the writer."""
-        batch = self.pending[:]
-        self.pending.clear()
-        if not batch or self.stopped:
+        n = len(self.datas)
+        if not n:
             return
-        n = len(batch)
-        chans, times, datas = zip(*batch, strict=True)
+        chans = array("H", self.chans).tobytes()
+        times = array("d", self.times).tobytes()
+        lens = array("I", map(len, self.datas)).tobytes()
+        payload = b"".join(self.datas)
+        self.chans.clear()
+        self.times.clear()
+        self.datas.clear()
+        if self.stopped:
+            return
         now = self.clock.now()
         offset = self.clock.utc(now) - now
-        parts: list[bytes] = [BATCH.pack(n, offset), array("H", chans).tobytes(),
-                              array("d", times).tobytes(),
-                              array("I", map(len, datas)).tobytes(), *datas]
-        body = b"".join(parts)
+        body = b"".join((BATCH.pack(n, offset), chans, times, lens, payload))
         self._queue(HEADER.pack(b"D", len(body)) + body, n)
         self.counters["messages"] += n
 
@@ -344,7 +353,9 @@ class Recorder:
         self._fault(why)
         self.stopped = why
         self.on[0] = False
-        self.pending.clear()
+        self.chans.clear()
+        self.times.clear()
+        self.datas.clear()
         self._detach()
 
     # ---------------------------------------------------------------- run
@@ -362,7 +373,7 @@ class Recorder:
             while True:
                 await asyncio.sleep(period)
                 self._attach()
-                if self._virtual and len(self.pending) < SIM_BATCH \
+                if self._virtual and len(self.datas) < SIM_BATCH \
                         and time.monotonic() - self._last_drain < period:
                     continue
                 self._last_drain = time.monotonic()
@@ -375,6 +386,11 @@ class Recorder:
                     self._events()
                     raise RuntimeError(f"recorder writer exited with code {proc.returncode}")
         finally:
+            # the runtime is stopping: let the other components' last words (the
+            # thruster driver's zero) happen before the file is finished
+            with contextlib.suppress(asyncio.CancelledError):
+                for _ in range(SHUTDOWN_SPINS):
+                    await asyncio.sleep(0)
             self._finish()
 
     def _finish(self) -> None:

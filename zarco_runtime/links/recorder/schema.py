@@ -19,7 +19,6 @@ import dataclasses
 import enum
 import types
 import typing
-from collections.abc import Callable
 from typing import Any
 
 import orjson
@@ -28,23 +27,13 @@ import orjson
 OPTIONS = orjson.OPT_NON_STR_KEYS
 
 
-def _default(obj: Any) -> Any:
+def json_default(obj: Any) -> Any:
+    """What orjson cannot encode itself: bytes as base64, sets as lists, else repr."""
     if isinstance(obj, (bytes, bytearray, memoryview)):
         return base64.b64encode(obj).decode("ascii")
     if isinstance(obj, (set, frozenset)):
         return sorted(obj, key=repr)
     return repr(obj)
-
-
-def encoder() -> Callable[[Any], bytes]:
-    """``encode(msg) -> bytes``: a message as JSON (UTF-8)."""
-
-    def encode(msg: Any, dumps: Any = orjson.dumps, default: Any = _default,
-               opt: int = OPTIONS) -> bytes:
-        out: bytes = dumps(msg, default=default, option=opt)
-        return out
-
-    return encode
 
 
 def _field_schema(tp: Any, seen: set[type]) -> dict[str, Any]:
