@@ -28,6 +28,7 @@ import asyncio
 import contextlib
 import datetime as dt
 import fcntl
+import functools
 import json
 import logging
 import os
@@ -76,8 +77,10 @@ FINISH_TIMEOUT_S = 10.0
 Devices = Callable[[], Sequence[DeviceLink | None]]
 
 
+@functools.cache
 def software_version() -> str:
-    """The package version, and the git commit when run from a work tree."""
+    """The package version, and the git commit when run from a work tree (once a
+    process)."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:
