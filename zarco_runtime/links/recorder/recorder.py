@@ -33,6 +33,7 @@ import json
 import logging
 import os
 import platform
+import select
 import subprocess
 import sys
 import time
@@ -241,7 +242,7 @@ class Recorder:
         fd = self.proc.stdin.fileno()
         with contextlib.suppress(OSError, AttributeError):
             fcntl.fcntl(fd, fcntl.F_SETPIPE_SZ, 1 << 20)
-        os.set_blocking(fd, self._virtual)
+        os.set_blocking(fd, False)
         os.set_blocking(self.proc.stdout.fileno(), False)
         folder = rc.dir if os.path.isabs(rc.dir) else os.path.join(self.base_dir, rc.dir)
         o = self.cfg.origin
@@ -250,17 +251,22 @@ class Recorder:
                  "flush_s": rc.flush_s, "fsync_s": rc.fsync_s, "location_hz": rc.location_hz,
                  "origin": [o.lat_deg, o.lon_deg, o.alt_m], "first_part": self.parts,
                  "metadata": self._metadata()}
+        data = [f for f in self.out if f[1] > 0]  # batches a dead writer did not take
         self.out.clear()
         self.out_bytes = 0
         self._partial = b""
         self._queue(self._json(start), 0)
         for d in self.channels:
             self._queue(self._json(d), 0)
+        for frame, n in data:
+            self._queue(frame, n)
 
     def _queue(self, frame: bytes, n: int) -> None:
         self.out.append((frame, n))
         self.out_bytes += len(frame)
         cap = self.rc.queue_mb * 1e6
+        if self._virtual:  # a simulation waits for its writer instead (_send)
+            return
         while self.out_bytes > cap and len(self.out) > 1:
             # drop the oldest batch (never a channel definition: those carry no records)
             for i, (f, k) in enumerate(self.out):
@@ -309,7 +315,10 @@ class Recorder:
             try:
                 k = os.write(fd, self._partial)
             except BlockingIOError:
-                return
+                if not (self._virtual and self.out_bytes > self.rc.queue_mb * 1e6):
+                    return  # the rest goes at the next turn
+                select.select([], [fd], [])  # simulation: too far behind, wait
+                continue
             except (BrokenPipeError, OSError) as exc:
                 raise RuntimeError(f"recorder writer pipe: {exc}") from exc
             self._partial = self._partial[k:]

@@ -273,7 +273,7 @@ class Recording:
                     f.add(ch, ns, ns, data)
                     continue
                 f.add(ch, ns, ns, data)
-                if ch.derive:
+                if ch.derive and t >= self.next_fix.get(ch.derive, -1e300):
                     self._derive(f, ch.derive, data, offset, ns)
         except OSError as exc:
             self._stop(f"write failed: {exc}: recording stopped", "error")
