@@ -1,0 +1,124 @@
+"""``zarco`` command line.
+
+``zarco run`` (the boat) is built in.  Every other sub-command (``sim``,
+``hil``, ``decode``, ``replay``, ``navreport``, ...) belongs to a package that
+stands beside the onboard runtime (the simulator, HIL, evaluation tools) and
+is found through the ``zarco.commands`` entry points, loaded only when one of
+them is asked for: ``zarco run`` never imports the simulator, HIL, plotting
+or evaluation code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from typing import Any
+
+from zarco_core.config import ConfigError
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from zarco_runtime.vessel import run_vessel
+
+    return run_vessel(args.config, args.set, args.status)
+
+
+def cmd_ctl(args: argparse.Namespace) -> int:
+    """``zarco ctl``: one command to a running runtime over its local socket."""
+    import socket
+
+    if args.name == "status":
+        req: dict[str, Any] = {"name": "status"}
+    else:
+        try:
+            cmd_args = json.loads(args.args) if args.args else {}
+        except json.JSONDecodeError as exc:
+            print(f"zarco ctl: ARGS is not JSON: {exc}", file=sys.stderr)
+            return 2
+        req = {"name": args.name, "args": cmd_args}
+    try:
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.settimeout(5.0)
+            s.connect(args.socket)
+            s.sendall((json.dumps(req) + "\n").encode())
+            buf = b""
+            while not buf.endswith(b"\n"):
+                chunk = s.recv(65536)
+                if not chunk:
+                    break
+                buf += chunk
+    except OSError as exc:
+        print(f"zarco ctl: {args.socket}: {exc}", file=sys.stderr)
+        return 2
+    reply = json.loads(buf or b"{}")
+    print(json.dumps(reply, indent=None if args.name != "status" else 2))
+    if args.name != "status" and not reply.get("ok"):
+        print(f"zarco ctl: refused: {reply.get('reason')}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="zarco", description="Zarco ASV runtime")
+    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run on the vessel (real devices)")
+    r.add_argument("--config", required=True, help="runtime TOML (config/zarco.toml)")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    r.add_argument("--status", metavar="FILE.jsonl", help="append the 1 Hz status snapshot "
+                   "and every event here (JSON lines), and a final line on exit")
+    r.set_defaults(func=cmd_run)
+
+    c = sub.add_parser("ctl", help="send a command to a running runtime (local socket)",
+                       description="Send one command to the supervisor of a running "
+                       "`zarco run` over its supervisor.control_socket and print its "
+                       "acknowledgement (exit 1 if refused). NAME: stop, mode, mission, "
+                       "follow, thrust, resume, arm, disarm, or status (the latest status "
+                       "snapshot). ARGS: the command's arguments as JSON, e.g. "
+                       "'{\"mode\": \"hold\"}'.")
+    c.add_argument("--socket", required=True, help="the runtime's control socket")
+    c.add_argument("name", help="command name, or status")
+    c.add_argument("args", nargs="?", default="", help="arguments as a JSON object")
+    c.set_defaults(func=cmd_ctl)
+
+    for ep in _tool_commands(argv):
+        ep.load()(sub)
+    return p
+
+
+#: sub-commands of this module; any other comes from a ``zarco.commands`` entry point
+BUILTIN = ("run", "ctl")
+
+
+def _tool_commands(argv: list[str] | None) -> list[Any]:
+    """The ``zarco.commands`` entry points to load for ``argv``: none for a built-in
+    sub-command, else all of them (``zarco --help`` lists every command)."""
+    args = sys.argv[1:] if argv is None else argv
+    words = [a for a in args if not a.startswith("-")]
+    if words and words[0] in BUILTIN:
+        return []
+    from importlib.metadata import entry_points
+
+    return sorted(entry_points(group="zarco.commands"), key=lambda e: e.name)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser(argv).parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.WARNING,
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        return int(args.func(args))
+    except ConfigError as exc:
+        print(f"zarco: configuration refused: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,229 @@
+"""Line-tracking and speed control (paper III.B, DESIGN.md §5), as pure objects.
+
+Steering, in the paper's arctan anti-windup form:
+
+    ψ_ref = ψ0 − arctan(σ),   σ = (K_d d + K_l ∫d dt + K_v ḋ) / K_ψ
+    N_cmd = K_ψ (ψ_ref − ψ) − K_r r − K_n N̂t
+
+* K come from the LQR design scheduled on the leg speed (``lqr.py``).  With
+  σ small this is exactly the LQR state feedback, the unmeasured sway v
+  replaced by the measured cross-track rate ḋ = U e + v (GPS velocity: this
+  is how the gust-driven sway is seen), and N̂t the moment the thrusters are
+  producing (our own command through the thruster lag).
+* ψ0 = ψ_traj − asin(c_⊥ / U) is the crab angle that cancels the cross-line
+  component of the water current, estimated by :class:`CurrentObserver`;
+  the integral then only has to absorb what is left (compass bias,
+  misalignment, mismatch), so it does not re-wind at every corner.
+* The integral of d grows only while |d| is inside a window and the yaw
+  moment is not saturated in the direction it would push (anti-windup).
+
+Speed: X_cmd = F_f(u_w,ref) + k_p (U_ref − U) + k_i ∫(U_ref − U) dt with the
+feedforward F_f from the nominal surge damping, U the ground speed along the
+line, and the integral frozen when the surge demand is cut by allocation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from zarco_core.angles import wrap
+from zarco_core.messages import NavState
+from zarco_core.vessel import VesselModel
+from zarco_runtime.control.allocation import Allocation
+from zarco_runtime.control.lqr import GainSchedule
+from zarco_runtime.control.settings import Control, xtrack_rate_tau_s
+from zarco_runtime.guidance.mission import Leg
+
+#: heading errors beyond this (rad) commit to the direction of the turn
+TURN_COMMIT_RAD = math.radians(150.0)
+
+
+class CurrentObserver:
+    """Water current (NED, m/s) from GPS ground velocity and a surge model.
+
+    Speed through the water u_w is integrated from the surge equation
+    (m − X_u') u_w' = X_u u_w + X_|u|u |u_w| u_w + X_act with the thrust the
+    allocator actually asked for; the current is the low-passed difference
+    between ground velocity and u_w along the heading, updated only on
+    straight, moving legs (sway is negligible there).
+    """
+
+    def __init__(self, vm: VesselModel, tau_s: float) -> None:
+        self.vm = vm
+        self.tau_s = tau_s
+        self.u_w = 0.0
+        self.cn = 0.0
+        self.ce = 0.0
+        self.samples = 0
+
+    def step(self, nav: NavState, x_act_n: float, dt: float) -> None:
+        vm = self.vm
+        acc = (vm.x_u * self.u_w + vm.x_uu * abs(self.u_w) * self.u_w + x_act_n) / (
+            vm.m_kg - vm.x_udot
+        )
+        self.u_w += acc * dt
+        if self.tau_s <= 0.0 or not nav.pos_valid or not nav.heading_valid:
+            return
+        if abs(nav.r_rps) > math.radians(3.0) or self.u_w < 0.15:
+            return
+        mn = nav.vn_mps - self.u_w * math.cos(nav.psi_rad)
+        me = nav.ve_mps - self.u_w * math.sin(nav.psi_rad)
+        a = min(1.0, dt / self.tau_s)
+        self.cn += a * (mn - self.cn)
+        self.ce += a * (me - self.ce)
+        self.samples += 1
+
+
+@dataclass(frozen=True, slots=True)
+class Demand:
+    """One tick's demands: surge force (N), yaw moment (N m), heading reference."""
+
+    x_n: float
+    n_nm: float
+    psi_ref_rad: float
+    psi0_rad: float
+
+
+class LineController:
+    """Steering + speed control along the active leg."""
+
+    def __init__(self, vm: VesselModel, ctl: Control, lag_s: float, dt: float,
+                 rate_tau_s: float | None = None) -> None:
+        """``rate_tau_s``: low-pass of the GPS part of the cross-track rate (s);
+        None: :func:`~zarco_runtime.settings.xtrack_rate_tau_s` for the first estimate."""
+        self.vm = vm
+        self.ctl = ctl
+        self.tau_r = rate_tau_s if rate_tau_s is not None else xtrack_rate_tau_s(ctl)
+        self.dt = dt
+        self.lag_s = lag_s
+        self.schedule = GainSchedule(vm, ctl, lag_s, dt)
+        self.current = CurrentObserver(vm, ctl.current_tau_s)
+        self.l_int = 0.0
+        self.u_int = 0.0
+        self.nt = 0.0
+        self.leg_index = -1
+        self._last_sigma_parts = (0.0, 0.0, 0.0)
+        self._k: tuple[float, ...] = self.schedule.at(1.0)
+        self._d = 0.0
+        self.rho = 0.0
+        self.d_hat = 0.0
+        self.s_int = 0.0
+        self._lead = 0.0
+        self._fresh_leg = True
+        self._turn = 0.0
+
+    def heading_error(self, psi_ref: float, psi: float) -> float:
+        """ψ_ref − ψ wrapped to (−π, π], but once the error is beyond
+        ``TURN_COMMIT_RAD`` the turn keeps its direction until it is under it:
+        at an error near 180° the wrapped error flips sign at every tick and the
+        boat would sit on the wrong heading, chattering, instead of turning."""
+        e = wrap(psi_ref - psi)
+        if abs(e) > TURN_COMMIT_RAD:
+            if self._turn == 0.0:
+                self._turn = 1.0 if e >= 0.0 else -1.0
+            elif e * self._turn < 0.0:
+                e += self._turn * math.tau
+        else:
+            self._turn = 0.0
+        return e
+
+    def feedforward_n(self, u_w: float) -> float:
+        """F_f(u): thrust (N) that balances surge damping at water speed u_w."""
+        return -(self.vm.x_u * u_w + self.vm.x_uu * abs(u_w) * u_w)
+
+    def reset_leg(self, leg: Leg) -> None:
+        self.leg_index = leg.index
+        self.l_int = 0.0
+        self._fresh_leg = True
+
+    def step(self, nav: NavState, leg: Leg, d: float, along_err: float | None = None,
+             k_s: float = 0.0, k_i: float = 0.0, along_clamp: float = 10.0) -> Demand:
+        """Demands for this tick from the navigation state and line geometry.
+
+        ``along_err`` (following the AUV): s_AUV − s, how far the target is ahead
+        along the line (m); it adds k_s·lead + k_i·∫lead to the surge force.
+        """
+        if leg.index != self.leg_index:
+            self.reset_leg(leg)
+        ctl = self.ctl
+        u_ref = leg.speed_mps
+        psi_t = leg.course_rad
+        ct, st = math.cos(psi_t), math.sin(psi_t)
+        # cross-track rate: the part the heading explains (u_w sin e, clean: compass +
+        # gyro) plus the rest (sway, current, bias) seen from GPS velocity and
+        # low-passed; cross-track error: GPS d, smoothed along that rate
+        u_g = nav.vn_mps * ct + nav.ve_mps * st
+        d_dot_gps = -nav.vn_mps * st + nav.ve_mps * ct
+        u_w = max(0.0, self.current.u_w)
+        d_dot_hdg = u_w * math.sin(wrap(nav.psi_rad - psi_t))
+        tau_r, tau_d = self.tau_r, ctl.xtrack_tau_s
+        if self._fresh_leg:
+            self.rho = d_dot_gps - d_dot_hdg
+            self.d_hat = d
+            self._fresh_leg = False
+        else:
+            self.rho += min(1.0, self.dt / tau_r) * (d_dot_gps - d_dot_hdg - self.rho)
+            self.d_hat += (d_dot_hdg + self.rho) * self.dt
+            self.d_hat += min(1.0, self.dt / tau_d) * (d - self.d_hat)
+        d_dot = d_dot_hdg + self.rho
+        d = self.d_hat
+        # current: cross-line component → crab angle; along-line → water speed
+        c_perp = -self.current.cn * st + self.current.ce * ct
+        c_along = self.current.cn * ct + self.current.ce * st
+        u_w_ref = max(0.05, u_ref - c_along)
+        crab = math.asin(max(-0.9, min(0.9, c_perp / u_w_ref)))
+        psi0 = psi_t - crab
+        k_d, k_l, k_e, k_r, k_v, k_n = self.schedule.at(u_w_ref)
+        self._k = (k_d, k_l, k_e, k_r, k_v, k_n)
+        k_psi = max(1e-3, k_e - k_v * u_w_ref * math.cos(crab))
+        sigma = (k_d * d + k_l * self.l_int + k_v * d_dot) / k_psi
+        lim = math.radians(ctl.max_intercept_deg)
+        offset = max(-lim, min(lim, math.atan(sigma)))
+        psi_ref = wrap(psi0 - offset)
+        n_cmd = (k_psi * self.heading_error(psi_ref, nav.psi_rad) - k_r * nav.r_rps
+                 - k_n * self.nt)
+        x_cmd = (self.feedforward_n(u_w_ref) + ctl.speed_kp * (u_ref - u_g)
+                 + ctl.speed_ki * self.u_int)
+        self._lead = 0.0
+        if along_err is not None and math.isfinite(along_err):
+            self._lead = max(-along_clamp, min(along_clamp, along_err))
+            x_cmd += k_s * self._lead + k_i * self.s_int
+        self._d = d
+        self._u_err = u_ref - u_g
+        self._sigma_sat = abs(math.atan(sigma)) >= lim
+        return Demand(x_cmd, n_cmd, psi_ref, psi0)
+
+    def hold(self, nav: NavState, psi_hold: float) -> Demand:
+        """Slow down and keep heading ``psi_hold`` (track lost, or inside the hold
+        radius): brake with the speed gain, heading-hold PD on yaw."""
+        ctl = self.ctl
+        u_g = nav.vn_mps * math.cos(nav.psi_rad) + nav.ve_mps * math.sin(nav.psi_rad)
+        self._d = 0.0
+        self._u_err = 0.0
+        self._lead = 0.0
+        self._sigma_sat = True  # no cross-track integration while holding
+        x_cmd = -ctl.speed_kp * u_g
+        n_cmd = (ctl.heading_kp * self.heading_error(psi_hold, nav.psi_rad)
+                 - ctl.heading_kd * nav.r_rps)
+        return Demand(x_cmd, n_cmd, psi_hold, psi_hold)
+
+    def commit(self, nav: NavState, alloc: Allocation) -> None:
+        """Update integrators and internal states with what was actually commanded."""
+        dt = self.dt
+        # integral of cross-track error with anti-windup
+        d = self._d
+        push = -d  # integrating d makes N more negative for d > 0
+        blocked = (alloc.sat_n > 0 and push > 0) or (alloc.sat_n < 0 and push < 0)
+        if abs(d) < self.ctl.integral_window_m and not blocked and not self._sigma_sat:
+            self.l_int += d * dt
+        # speed integral, frozen when surge is cut in the direction it pushes
+        ue = self._u_err
+        if not ((alloc.sat_x > 0 and ue > 0) or (alloc.sat_x < 0 and ue < 0)):
+            self.u_int += ue * dt
+        le = self._lead
+        if le and not ((alloc.sat_x > 0 and le > 0) or (alloc.sat_x < 0 and le < 0)):
+            self.s_int += le * dt
+        # moment actually produced, through the thruster lag
+        self.nt += (alloc.n_nm - self.nt) * min(1.0, dt / self.lag_s)
+        self.current.step(nav, alloc.x_n, dt)

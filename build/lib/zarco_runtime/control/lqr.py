@@ -1,0 +1,141 @@
+"""LQR design of the line-tracking steering gains, scheduled on speed.
+
+The paper (III.B) notes that the linearised steering system is controllable
+for u0 ≠ 0 and that gains k_y, k_l, k_ψ, k_r can be chosen to stabilise it;
+we choose them by discrete LQR on that model at each speed of a grid, with
+the thruster lag added, and interpolate at run time.
+
+State z = [d, l, e, r, v, Nt] (cross-track error m, its integral m s,
+heading error rad, yaw rate rad/s, sway m/s, applied yaw moment N m), input
+the commanded yaw moment N_cmd (N m):
+
+    d' = U e + v                 l' = d              e' = r
+    (m − Y_v') v' = Y_v v − m U r                      (from m(v' + u r) = Y)
+    (Iz − N_r') r' = N_r r + Nt
+    Nt' = (N_cmd − Nt) / τ_thr
+
+Discretised with a zero-order hold at the control period; the discrete
+algebraic Riccati equation is solved by the structured doubling algorithm
+(quadratic convergence, ~20 iterations of 6×6 matrices).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from zarco_core.vessel import VesselModel
+from zarco_runtime.control.settings import Control
+
+STATE = ("d", "l", "e", "r", "v", "nt")
+
+
+def expm(a: np.ndarray) -> np.ndarray:
+    """Matrix exponential by scaling and squaring of a Taylor series (small, well-scaled A)."""
+    norm = float(np.linalg.norm(a, ord=np.inf))
+    s = max(0, math.ceil(math.log2(norm)) + 1) if norm > 0.5 else 0
+    x = a / (2.0**s)
+    term = np.eye(a.shape[0])
+    out = np.eye(a.shape[0])
+    for k in range(1, 20):
+        term = term @ x / k
+        out = out + term
+    for _ in range(s):
+        out = out @ out
+    return out
+
+
+def c2d(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation."""
+    n, m = b.shape
+    blk = np.zeros((n + m, n + m))
+    blk[:n, :n] = a
+    blk[:n, n:] = b
+    e = expm(blk * dt)
+    return e[:n, :n], e[:n, n:]
+
+
+def dare(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Stabilising solution of the discrete algebraic Riccati equation (SDA)."""
+    n = a.shape[0]
+    ak = a.copy()
+    gk = b @ np.linalg.solve(r, b.T)
+    hk = q.copy()
+    eye = np.eye(n)
+    for _ in range(100):
+        w = eye + gk @ hk
+        w_inv_a = np.linalg.solve(w, ak)
+        w_inv_g = np.linalg.solve(w, gk)
+        a_next = ak @ w_inv_a
+        g_next = gk + ak @ w_inv_g @ ak.T
+        h_next = hk + ak.T @ hk @ w_inv_a
+        if float(np.linalg.norm(h_next - hk)) <= 1e-10 * max(1.0, float(np.linalg.norm(h_next))):
+            out: np.ndarray = h_next
+            return out
+        ak, gk, hk = a_next, g_next, h_next
+    raise ArithmeticError("DARE did not converge")
+
+
+def steering_model(u_mps: float, vm: VesselModel, lag_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous-time (A, B) of the linearised steering model at speed ``u_mps``."""
+    mv = vm.m_kg - vm.y_vdot
+    jr = vm.iz_kgm2 - vm.n_rdot
+    a = np.zeros((6, 6))
+    a[0, 2] = u_mps
+    a[0, 4] = 1.0
+    a[1, 0] = 1.0
+    a[2, 3] = 1.0
+    a[3, 3] = vm.n_r / jr
+    a[3, 5] = 1.0 / jr
+    a[4, 3] = -vm.m_kg * u_mps / mv
+    a[4, 4] = vm.y_v / mv
+    a[5, 5] = -1.0 / lag_s
+    b = np.zeros((6, 1))
+    b[5, 0] = 1.0 / lag_s
+    return a, b
+
+
+@dataclass(frozen=True, slots=True)
+class SteeringGains:
+    """State-feedback gains N_cmd = −K z for z = [d, l, e, r, v, Nt]."""
+
+    u_mps: float
+    k: tuple[float, float, float, float, float, float]
+
+
+def design(u_mps: float, vm: VesselModel, ctl: Control, lag_s: float, dt: float) -> SteeringGains:
+    """LQR gains at speed ``u_mps`` (Bryson's rule on the configured scales)."""
+    a, b = steering_model(u_mps, vm, lag_s)
+    ad, bd = c2d(a, b, dt)
+    scales = [ctl.lqr_d_m, ctl.lqr_int_ms, math.radians(ctl.lqr_psi_deg),
+              math.radians(ctl.lqr_r_dps), ctl.lqr_v_mps, 1e3]
+    q = np.diag([1.0 / s**2 for s in scales])
+    r = np.array([[1.0 / ctl.lqr_n_nm**2]])
+    p = dare(ad, bd, q * dt, r * dt)
+    k = np.linalg.solve(r * dt + bd.T @ p @ bd, bd.T @ p @ ad)[0]
+    return SteeringGains(u_mps, tuple(float(x) for x in k))  # type: ignore[arg-type]
+
+
+class GainSchedule:
+    """LQR gains on a speed grid, linearly interpolated at run time."""
+
+    def __init__(self, vm: VesselModel, ctl: Control, lag_s: float, dt: float,
+                 speeds: tuple[float, ...] = (0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.4,
+                                              1.6, 1.8)) -> None:
+        self.speeds = speeds
+        self.gains = [design(u, vm, ctl, lag_s, dt) for u in speeds]
+
+    def at(self, u_mps: float) -> tuple[float, ...]:
+        """Gains K at speed ``u_mps`` (clamped to the grid)."""
+        sp = self.speeds
+        if u_mps <= sp[0]:
+            return self.gains[0].k
+        if u_mps >= sp[-1]:
+            return self.gains[-1].k
+        i = bisect.bisect_right(sp, u_mps)
+        w = (u_mps - sp[i - 1]) / (sp[i] - sp[i - 1])
+        k0, k1 = self.gains[i - 1].k, self.gains[i].k
+        return tuple(a + w * (b - a) for a, b in zip(k0, k1, strict=True))

@@ -1,0 +1,1 @@
+"""Supervision: the vessel's mode, commands and failsafes."""

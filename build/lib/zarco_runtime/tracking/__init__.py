@@ -1,0 +1,18 @@
+"""Passive AUV tracking from the buoy's acoustic feed (DESIGN.md §6, paper IV–V).
+
+Pure, deterministic, synchronous code: no I/O, no asyncio, no clocks.  The
+runtime feeds :class:`~zarco_runtime.tracking.tracker.AuvTracker` with
+:class:`~zarco_core.auv_messages.AcousticEvent` messages and
+publishes the :class:`~zarco_core.auv_messages.AuvTrack` it returns.
+
+Modules, in data-flow order:
+
+* :mod:`.messages` – AcousticEvent, BuoyStatus, AuvFix, AuvTrack, TrackFlags;
+* :mod:`.params` – TrackerParams / LblNetworkParams (also the config schema);
+* :mod:`.cycles` – I/R/I cycle assembly with gates and drop counters;
+* :mod:`.fix` – ranges, emission time, motion-bias correction, circle fix;
+* :mod:`.kalman` – constant-velocity Kalman filter with innovation gating;
+* :mod:`.rls` – recursive least squares with forgetting on the line model;
+* :mod:`.tracker` – the glue, track aging and lost declaration;
+* :mod:`.follow` – the follow-law geometry of DESIGN.md §5.
+"""

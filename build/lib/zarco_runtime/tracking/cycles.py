@@ -1,0 +1,250 @@
+"""Assemble interrogation/reply/interrogation cycles from the buoy's event stream.
+
+The AUV interrogates beacon i (event ``I``, beacon i), beacon i replies after
+its turnaround τ_i (event ``R``, beacon i), and the AUV interrogates the next
+beacon a fixed delay δ after hearing the reply.  The listener (at beacon k)
+timestamps what it hears on UTC; a *cycle* j is the triple
+(t^I_j, t^R_j, t^I_{j+1}) for one beacon (DESIGN.md §6).
+
+Rules, all on the listener's UTC times (s):
+
+* an ``R`` from beacon i belongs to the *earliest* still-unanswered ``I`` of
+  beacon i with τ_i ≤ t^R − t^I ≤ τ_i + 2 d_i / c (± ``tol``): the physical
+  window (the reply cannot arrive before the turnaround, nor later than the
+  longest detour d_i there and back); first arrival wins, so multipath copies
+  of an ``I`` (always later) are never matched while the direct one is there;
+* a matched pair *opens* a cycle; the next ``I`` (any beacon) closes it, unless
+  it comes sooner than the AUV could possibly ping again
+  (τ_i + δ + 2 r_min / c, r_min the AUV's depth offset from beacon i), which
+  marks it a false or multipath detection (``impossible_timing``), or later than
+  τ_i + δ + 2 r_max / c, which means the closing ping was missed
+  (cycle dropped ``missed_ping``);
+* a second ``R`` for an already answered ``I`` is a late (multipath) arrival;
+* with a ``predictor`` (the tracker's filter, once initialised) the closing
+  window shrinks to P̂ ± 2(``n_sigma`` σ̂ + ``margin_m``)/c around the period
+  P̂ = τ_i + δ + 2 r̂_i / c of the predicted range r̂_i (σ̂ its 1σ, m): a
+  missed closing ping then shows as ``missed_ping`` instead of closing the
+  cycle on the interrogation after it (a period one cycle too long).
+
+Every event that is not used is counted in :attr:`CycleAssembler.dropped` with
+a reason; every cycle lost in :attr:`CycleAssembler.cycles_dropped`.  Reasons:
+
+``garbage``          non-finite time, unknown kind, non-integer beacon
+``unknown_beacon``   beacon id not in the network
+``duplicate``        same kind, beacon and time (±0.5 µs) as a recent event
+``out_of_order``     earlier than the last accepted event
+``impossible_timing`` an ``I`` too soon after an answered one to be the AUV's
+``gate``             an ``R`` outside every open reply window
+``late_arrival``     an ``R`` for an interrogation already answered
+``no_reply``         an ``I`` never answered (expired from the buffer)
+
+cycles: ``missed_ping`` (closing ``I`` not heard in time), ``sequence``
+(closing ``I`` is not the configured successor), ``superseded`` (a new
+pair opened before the previous cycle closed).
+
+:meth:`CycleAssembler.push` never raises.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from zarco_runtime.tracking.params import Network
+
+#: two events closer than this (s) with the same kind and beacon are duplicates
+DUP_EPS_S = 0.5e-6
+#: recent accepted events remembered for duplicate detection
+DUP_MEMORY = 16
+#: unanswered interrogations kept at most
+MAX_CANDIDATES = 8
+
+
+@dataclass(slots=True)
+class Cycle:
+    """One complete I/R/I cycle on the listener's UTC clock.
+
+    ``index``/``beacon``: network index and wire id of the beacon interrogated;
+    ``t_i``, ``t_r``, ``t_next``: UTC (s) of the interrogation, of the reply and
+    of the AUV's next interrogation (addressed to ``next_beacon``) at the
+    listener; ``t``: runtime time of the closing event.
+    """
+
+    t: float
+    index: int
+    beacon: int
+    t_i: float
+    t_r: float
+    t_next: float
+    next_beacon: int
+
+
+class CycleAssembler:
+    """Stateful cycle assembly; feed events in arrival order with :meth:`push`."""
+
+    __slots__ = ("_cands", "_last_utc", "_open", "_recent", "_seq_next", "accepted", "cycles",
+                 "cycles_dropped", "dropped", "margin_m", "max_range_m", "n_sigma", "net",
+                 "predictor", "r_min")
+
+    def __init__(self, net: Network, auv_depth_m: float, max_range_m: float,
+                 sequence: list[int] | None = None,
+                 predictor: Callable[[int, float], tuple[float, float] | None] | None = None,
+                 n_sigma: float = 4.0, margin_m: float = 15.0) -> None:
+        self.net = net
+        self.max_range_m = max_range_m
+        #: (network index, UTC of the interrogation at the listener) → (r̂_i, σ̂) m, or None
+        self.predictor = predictor
+        self.n_sigma = n_sigma
+        self.margin_m = margin_m
+        #: smallest possible AUV range to each beacon (its depth offset), m
+        self.r_min = tuple(abs(auv_depth_m - z) for z in net.depth)
+        #: successor of each beacon id in the AUV's interrogation order (None: any)
+        self._seq_next: dict[int, int] | None = None
+        if sequence:
+            self._seq_next = {b: sequence[(j + 1) % len(sequence)]
+                              for j, b in enumerate(sequence)}
+        self.dropped: Counter[str] = Counter()
+        self.cycles_dropped: Counter[str] = Counter()
+        self.cycles = 0
+        #: events that passed the validity, duplicate and order checks
+        self.accepted = 0
+        # unanswered interrogations: [utc, network index]
+        self._cands: deque[tuple[float, int]] = deque()
+        # the open cycle: (index, t_i, t_r, physical p_lo, p_lo, p_hi) or None
+        self._open: tuple[int, float, float, float, float, float] | None = None
+        self._recent: deque[tuple[str, int, float]] = deque(maxlen=DUP_MEMORY)
+        self._last_utc = -math.inf
+
+    def reset(self, clock: bool = False) -> None:
+        """Forget every pending interrogation and open cycle (counters kept);
+        with ``clock``, also the order and duplicate memory (after a time jump)."""
+        self._cands.clear()
+        self._open = None
+        if clock:
+            self._recent.clear()
+            self._last_utc = -math.inf
+
+    def push(self, ev: Any) -> Cycle | None:
+        """Take one :class:`~zarco_core.auv_messages.AcousticEvent`; return
+        the cycle it completes, if any.  Never raises: anything unusable is
+        counted in :attr:`dropped` / :attr:`cycles_dropped`."""
+        try:
+            return self._push(ev)
+        except Exception:  # defensive: a malformed object must not stop the tracker
+            self.dropped["garbage"] += 1
+            return None
+
+    def _push(self, ev: Any) -> Cycle | None:
+        utc = ev.utc_epoch_s
+        kind = ev.kind
+        beacon = ev.beacon
+        if (type(utc) not in (float, int) or not math.isfinite(utc) or kind not in ("I", "R")
+                or type(beacon) is not int):
+            self.dropped["garbage"] += 1
+            return None
+        idx = self.net.index.get(beacon)
+        if idx is None:
+            self.dropped["unknown_beacon"] += 1
+            return None
+        for k, b, u in self._recent:
+            if k == kind and b == beacon and abs(u - utc) <= DUP_EPS_S:
+                self.dropped["duplicate"] += 1
+                return None
+        if utc < self._last_utc - DUP_EPS_S:
+            self.dropped["out_of_order"] += 1
+            return None
+        self.accepted += 1
+        self._recent.append((kind, beacon, utc))
+        self._last_utc = max(self._last_utc, utc)
+        self._expire(utc)
+        if kind == "I":
+            return self._on_interrogation(ev.t, utc, idx)
+        self._on_reply(utc, idx)
+        return None
+
+    def _expire(self, utc: float) -> None:
+        """Drop unanswered interrogations whose every reply window has passed."""
+        cands = self._cands
+        hi = self.net.reply_hi
+        while cands and utc - cands[0][0] > hi[cands[0][1]]:
+            cands.popleft()
+            self.dropped["no_reply"] += 1
+
+    def _on_interrogation(self, t: float, utc: float, idx: int) -> Cycle | None:
+        cycle = None
+        op = self._open
+        if op is not None:
+            oidx, t_i, t_r, phys_lo, p_lo, p_hi = op
+            dt = utc - t_i
+            if dt < phys_lo:
+                # the AUV cannot ping again this soon after an answered interrogation
+                self.dropped["impossible_timing"] += 1
+                return None
+            if dt < p_lo:
+                # possible, but not where the prediction expects the closing ping:
+                # keep it as a candidate (it may start a cycle), do not close on it
+                self._add_candidate(utc, idx)
+                return None
+            self._open = None
+            net = self.net
+            if dt > p_hi:
+                self.cycles_dropped["missed_ping"] += 1
+            elif (self._seq_next is not None
+                  and self._seq_next.get(net.ids[oidx]) != net.ids[idx]):
+                self.cycles_dropped["sequence"] += 1
+            else:
+                self.cycles += 1
+                cycle = Cycle(t, oidx, net.ids[oidx], t_i, t_r, utc, net.ids[idx])
+        self._add_candidate(utc, idx)
+        return cycle
+
+    def _add_candidate(self, utc: float, idx: int) -> None:
+        cands = self._cands
+        if len(cands) >= MAX_CANDIDATES:
+            cands.popleft()
+            self.dropped["no_reply"] += 1
+        cands.append((utc, idx))
+
+    def _on_reply(self, utc: float, idx: int) -> None:
+        net = self.net
+        lo = net.reply_lo[idx]
+        hi = net.reply_hi[idx]
+        cands = self._cands
+        for j, (t_i, cidx) in enumerate(cands):
+            if cidx == idx and lo <= utc - t_i <= hi:
+                # earliest matching interrogation: first arrival wins; everything
+                # heard before it can no longer be answered in sequence
+                for _ in range(j):
+                    cands.popleft()
+                    self.dropped["no_reply"] += 1
+                cands.popleft()
+                # later copies of the same interrogation (multipath) must not pair
+                # with a late copy of the reply
+                copies = [cand for cand in cands if cand[1] == idx and cand[0] < utc]
+                for cand in copies:
+                    cands.remove(cand)
+                    self.dropped["late_arrival"] += 1
+                if self._open is not None:
+                    self.cycles_dropped["superseded"] += 1
+                c = net.c
+                base = net.tau[idx] + net.delta
+                p_lo = phys_lo = base + 2.0 * self.r_min[idx] / c - net.tol
+                p_hi = base + 2.0 * self.max_range_m / c + net.tol
+                pred = self.predictor(idx, t_i) if self.predictor is not None else None
+                if pred is not None:
+                    r_hat, sigma = pred
+                    half = 2.0 * (self.n_sigma * sigma + self.margin_m) / c + net.tol
+                    lo = max(p_lo, base + 2.0 * r_hat / c - half)
+                    hi = min(p_hi, base + 2.0 * r_hat / c + half)
+                    if lo <= hi:
+                        p_lo, p_hi = lo, hi
+                self._open = (idx, t_i, utc, phys_lo, p_lo, p_hi)
+                return
+        op = self._open
+        if op is not None and op[0] == idx and lo <= utc - op[1] <= hi:
+            self.dropped["late_arrival"] += 1
+        else:
+            self.dropped["gate"] += 1

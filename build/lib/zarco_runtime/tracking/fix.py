@@ -1,0 +1,183 @@
+"""Ranges, emission time, motion-bias correction and the depth-corrected fix.
+
+DESIGN.md §6, with the listener at beacon L and a cycle (t^I_j, t^R_j, t^I_{j+1})
+on beacon i (UTC seconds at the listener), turnaround τ_i, AUV delay δ, sound
+speed c and d_i the 3-D distance from beacon i to the listener::
+
+    P_j = t^I_{j+1} − t^I_j                       ping period (s)
+    r_i = (c/2)(P_j − τ_i − δ)                    AUV range to beacon i (m)
+    r_L = r_i + d_i − c (t^R_j − t^I_j − τ_i)     AUV range to the listener (m)
+    T_j = t^I_j − r_L / c                         emission time (UTC s)
+
+Motion bias.  With the AUV moving, P_j measures the outbound range at T_j and
+the inbound range when the AUV hears the reply (Δt_h = 2 r_i/c + τ_i later),
+plus the change of its range to the listener between its two pings
+(Δt_P = Δt_h + δ later).  To first order both ranges come out biased by::
+
+    b = ṙ_i Δt_h / 2 + ṙ_L Δt_P / 2               (≈ v P / 2, m)
+
+where ṙ are the range rates.  :func:`motion_bias` computes b from a velocity
+(the filter's), and the corrected ranges are r − b (both r_i and r_L carry the
+same b: r_L − r_i only depends on t^R − t^I, which the motion does not bias).
+
+Fix.  With the AUV depth z known, each 3-D range becomes a horizontal radius
+ρ = √(r² − (z − z_b)²), and the two horizontal circles about beacon i and the
+listener meet in a fix and its mirror across the baseline.  When noise keeps
+them apart (or nested) by less than ``max_gap_m``, the least-squares point on
+the baseline is returned (tangent case, both solutions equal).
+
+All functions are pure; positions are local NED (x north, y east, metres).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from zarco_runtime.tracking.cycles import Cycle
+from zarco_runtime.tracking.params import Network
+
+
+@dataclass(slots=True)
+class CycleRanges:
+    """Ranges of one cycle (m), emission time (UTC s) and ping period (s)."""
+
+    index: int
+    r_i: float
+    r_l: float
+    emission_utc_s: float
+    period_s: float
+
+
+@dataclass(slots=True)
+class CircleFix:
+    """The two intersections of the horizontal circles (NED m) and the gap (m).
+
+    ``gap_m`` is 0 when the circles intersect; otherwise by how much they miss
+    (both solutions are then the least-squares point on the baseline).
+    ``rho_i_m``/``rho_l_m`` are the horizontal radii used.
+    """
+
+    x1: float
+    y1: float
+    x2: float
+    y2: float
+    gap_m: float
+    rho_i_m: float
+    rho_l_m: float
+
+
+def cycle_ranges(cycle: Cycle, net: Network) -> CycleRanges:
+    """Uncorrected ranges r_i, r_L, emission time T_j and period P_j of ``cycle``.
+
+    For a cycle on the listener's own beacon r_L = r_i by construction
+    (t^R − t^I − τ_L is then pure noise and is ignored).
+    """
+    i = cycle.index
+    c = net.c
+    p = cycle.t_next - cycle.t_i
+    r_i = 0.5 * c * (p - net.tau[i] - net.delta)
+    # on the listener's own beacon t^R − t^I − τ_L is pure noise: r_L = r_i
+    path_diff = 0.0 if i == net.listener else net.d[i] - c * (cycle.t_r - cycle.t_i - net.tau[i])
+    r_l = r_i + path_diff
+    return CycleRanges(i, r_i, r_l, cycle.t_i - r_l / c, p)
+
+
+def range_rate(net: Network, index: int, x: float, y: float, z: float, vx: float,
+               vy: float) -> float:
+    """d/dt of the 3-D range from beacon ``index`` to an AUV at (x, y, z) moving
+    horizontally at (vx, vy) m/s (m/s; 0 at the beacon itself)."""
+    dx = x - net.north[index]
+    dy = y - net.east[index]
+    dz = z - net.depth[index]
+    r = math.sqrt(dx * dx + dy * dy + dz * dz)
+    return 0.0 if r < 1e-9 else (dx * vx + dy * vy) / r
+
+
+def motion_bias(net: Network, index: int, r_i: float, x: float, y: float, z: float,
+                vx: float, vy: float) -> float:
+    """First-order range bias b (m) of a cycle on beacon ``index`` for an AUV at
+    (x, y, z) moving at (vx, vy): b = ṙ_i Δt_h/2 + ṙ_L Δt_P/2 (module docstring).
+    Subtract it from both r_i and r_L."""
+    dt_h = 2.0 * r_i / net.c + net.tau[index]
+    dt_p = dt_h + net.delta
+    rd_i = range_rate(net, index, x, y, z, vx, vy)
+    rd_l = range_rate(net, net.listener, x, y, z, vx, vy)
+    return 0.5 * (rd_i * dt_h + rd_l * dt_p)
+
+
+def horizontal_radius(r: float, dz: float) -> float:
+    """√(r² − dz²), or a negative number −√(dz² − r²) when the range is shorter
+    than the depth offset (callers decide how much of that they tolerate)."""
+    q = r * r - dz * dz
+    return math.sqrt(q) if q >= 0.0 else -math.sqrt(-q)
+
+
+def circle_fix(net: Network, index: int, r_i: float, r_l: float,
+               depth_m: float) -> CircleFix | None:
+    """Depth-corrected two-circle fix from ranges to beacon ``index`` and to the
+    listener; None when a range is shorter than its depth offset (by more than
+    1 m) or the beacon is the listener (a single circle)."""
+    lst = net.listener
+    if index == lst:
+        return None
+    rho_i = horizontal_radius(r_i, depth_m - net.depth[index])
+    rho_l = horizontal_radius(r_l, depth_m - net.depth[lst])
+    if rho_i < -1.0 or rho_l < -1.0:
+        return None
+    rho_i = max(rho_i, 0.0)
+    rho_l = max(rho_l, 0.0)
+    xl, yl = net.north[lst], net.east[lst]
+    bx, by = net.north[index] - xl, net.east[index] - yl
+    dist = math.hypot(bx, by)
+    if dist < 1e-6:  # beacons vertically above each other: no baseline
+        return None
+    ux, uy = bx / dist, by / dist
+    a = (rho_l * rho_l - rho_i * rho_i + dist * dist) / (2.0 * dist)
+    h2 = rho_l * rho_l - a * a
+    if h2 >= 0.0:
+        h = math.sqrt(h2)
+        gap = 0.0
+    else:
+        h = 0.0
+        if dist >= rho_l + rho_i:  # apart: the point midway between the circles
+            gap = dist - rho_l - rho_i
+            a = 0.5 * (rho_l + dist - rho_i)
+        elif rho_l >= dist + rho_i:  # beacon i's circle inside, beyond beacon i
+            gap = rho_l - dist - rho_i
+            a = 0.5 * (rho_l + dist + rho_i)
+        else:  # listener's circle inside, beyond the listener
+            gap = rho_i - dist - rho_l
+            a = 0.5 * (dist - rho_l - rho_i)
+    mx, my = xl + a * ux, yl + a * uy
+    # (−uy, ux) is the baseline direction turned 90° to the right (starboard) in NED
+    return CircleFix(mx - h * uy, my + h * ux, mx + h * uy, my - h * ux, gap, rho_i, rho_l)
+
+
+def range_jacobian(net: Network, index: int, x: float, y: float,
+                   depth_m: float) -> tuple[float, float]:
+    """∂r/∂(x, y) of the 3-D range from beacon ``index`` to (x, y, depth) — the
+    horizontal offset over the 3-D range (0, 0 at the beacon)."""
+    dx = x - net.north[index]
+    dy = y - net.east[index]
+    dz = depth_m - net.depth[index]
+    r = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if r < 1e-9:
+        return 0.0, 0.0
+    return dx / r, dy / r
+
+
+def range_variances(net: Network, index: int, timing_sigma_s: float,
+                    range_sigma_m: float) -> tuple[float, float]:
+    """Variances (m²) of r_i and r_L from independent detection jitter σ_t on the
+    three times plus a range error σ_r on each.
+
+    r_i = (c/2)(t^I_{j+1} − t^I_j) + const and
+    r_L = (c/2)(t^I_{j+1} + t^I_j) − c t^R + const, so Var r_i = c²σ_t²/2,
+    Var r_L = 3c²σ_t²/2 and their covariance is 0 (the t^I_j terms cancel).
+    """
+    ct2 = (net.c * timing_sigma_s) ** 2
+    rr = range_sigma_m * range_sigma_m
+    var_i = 0.5 * ct2 + rr
+    var_l = var_i if index == net.listener else 1.5 * ct2 + rr
+    return var_i, var_l

@@ -1,0 +1,179 @@
+"""Tracker configuration (the ``[runtime.tracker]`` schema) and the derived network.
+
+Conventions of :mod:`zarco_core.config`: ``@dataclass(slots=True)``, every
+field built with :func:`~zarco_core.config.spec` (default, unit, doc, range),
+cross-field checks in ``validate()`` raising ``ValueError("key: reason")``.
+
+Frames (DESIGN.md §3): beacon positions are local NED ``[north, east, depth]``
+metres about the configured origin, depth positive down.  Times in seconds.
+
+:class:`Network` is the immutable, precomputed form of
+:class:`LblNetworkParams` that the hot path uses (index lookups, listener
+distances d_i, physical reply windows).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from zarco_core.config import spec
+from zarco_core.lbl import LblNetworkParams
+
+#: inputs the RLS line fit may take
+RLS_INPUTS = ("kf", "fix")
+
+
+@dataclass(slots=True)
+class TrackerParams:
+    """Passive AUV tracker: cycle gates, fix, Kalman filter, RLS, track loss."""
+
+    network: LblNetworkParams = spec(LblNetworkParams, "", "the LBL network")
+    auv_depth_m: float = spec(10.0, "m", "the AUV's (known, constant) depth, positive down",
+                              min=0.0, max=6000.0)
+    sequence: list[int] = spec([], "", "beacon ids in the AUV's interrogation order, "
+                               "cyclic; a cycle whose next interrogation is not the "
+                               "successor is dropped (empty: any order)", min=0, max=9999)
+    timing_tol_s: float = spec(0.003, "s", "margin added to every physical timing window "
+                               "(several detection-jitter σ)", min=0.0, max=1.0)
+    max_range_m: float = spec(3000.0, "m", "largest AUV–beacon range accepted",
+                              min=10.0, max=20000.0)
+    closing_margin_m: float = spec(15.0, "m", "once tracking, the AUV's next interrogation "
+                                   "must come within ±2(4σ + this)/c of the period the "
+                                   "predicted range implies", min=0.0, max=10000.0)
+    max_speed_mps: float = spec(3.0, "m/s", "largest plausible AUV speed (initialisation)",
+                                min=0.1, max=20.0)
+    timing_sigma_s: float = spec(0.0005, "s", "1σ detection-time jitter assumed for the "
+                                 "measurement covariance", min=0.0, max=0.1)
+    range_sigma_m: float = spec(0.5, "m", "1σ range error added to the timing part "
+                                "(sound speed, residual motion bias)", min=0.0, max=100.0)
+    motion_correction: bool = spec(True, "", "correct the v·P/2 motion bias of the ranges "
+                                   "with the filter's velocity")
+    max_gap_m: float = spec(8.0, "m", "circles further apart than this give no fix "
+                            "(closer: the tangent point, flagged bad geometry)",
+                            min=0.0, max=1000.0)
+    accel_psd: float = spec(0.004, "m²/s³", "constant-velocity model: white-acceleration "
+                            "spectral density q", min=1e-8, max=100.0)
+    init_pos_sigma_m: float = spec(5.0, "m", "1σ position uncertainty at initialisation",
+                                   min=0.01, max=1e4)
+    init_vel_sigma_mps: float = spec(1.0, "m/s", "1σ velocity uncertainty at initialisation",
+                                     min=0.01, max=20.0)
+    gate_chi2: float = spec(16.0, "", "innovation gate on the Mahalanobis distance² of a "
+                            "fix (2 dof; 13.8 is 99.9 %)", min=1.0, max=1e6)
+    soft_gate_chi2: float = spec(4.0, "", "innovations with a Mahalanobis distance² above "
+                                 "this (and under gate_chi2) have their measurement "
+                                 "variance scaled by d²/this (robust down-weighting)",
+                                 min=1.0, max=1e6)
+    reacquire_after: int = spec(3, "", "gated fixes within init_window_s that make the "
+                                "tracker test whether the fixes, not the filter, are right "
+                                "(and re-initialise from them if so)", min=1, max=1000)
+    init_window_s: float = spec(30.0, "s", "fixes this recent vote for the mirror choice at "
+                                "(re)initialisation", min=1.0, max=600.0)
+    init_agree_m: float = spec(10.0, "m", "candidates from two baselines agree within this "
+                                "distance (plus max_speed × their time apart)",
+                               min=0.1, max=1000.0)
+    prior_north_m: float = spec(0.0, "m", "prior AUV position (north), resolves the mirror "
+                                "when only one baseline exists", min=-1e6, max=1e6)
+    prior_east_m: float = spec(0.0, "m", "prior AUV position (east)", min=-1e6, max=1e6)
+    rls_forgetting: float = spec(0.97, "1/s", "RLS forgetting factor per second (λ^Δt for "
+                                 "fixes Δt apart)", min=0.5, max=1.0)
+    rls_input: str = spec("kf", "", "what the RLS fits: Kalman-filtered positions or the "
+                          "raw fixes", choices=list(RLS_INPUTS))
+    rls_sigma_floor_m: float = spec(0.3, "m", "floor of the residual 1σ used to normalise "
+                                    "the RLS residuals", min=0.001, max=100.0)
+    rls_min_updates: int = spec(5, "", "updates after a reset before the line is flagged "
+                                "valid", min=1, max=1000)
+    turn_cusum_drift: float = spec(2.0, "", "CUSUM drift on the normalised squared residual "
+                                   "(mean 1 on a straight line)", min=0.0, max=100.0)
+    turn_cusum_threshold: float = spec(8.0, "", "CUSUM level that declares a turn and "
+                                       "resets the RLS covariance", min=0.1, max=1e4)
+    turn_vel_sigma_mps: float = spec(0.5, "m/s", "velocity 1σ added to the Kalman filter "
+                                     "when a turn is declared (the RLS restarts from it)",
+                                     min=0.0, max=10.0)
+    turn_pos_sigma_m: float = spec(1.0, "m", "position 1σ added to the Kalman filter when "
+                                   "a turn is declared", min=0.0, max=100.0)
+    maneuver_drift: float = spec(1.0, "", "CUSUM drift on the fixes' normalised "
+                                 "cross-course innovation (σ units)", min=0.0, max=100.0)
+    maneuver_threshold: float = spec(3.0, "", "that CUSUM's level declaring a manoeuvre "
+                                     "(a turn)", min=0.1, max=1e4)
+    maneuver_cap: float = spec(4.0, "", "each innovation is clipped to ± this (σ) in that "
+                                "CUSUM, so one outlier alone never declares a turn",
+                               min=0.1, max=1e4)
+    maneuver_restarts_line: bool = spec(False, "", "a manoeuvre declared by the filter "
+                                        "also restarts the RLS line (otherwise only the "
+                                        "RLS residual CUSUM does)")
+    turn_holdoff_s: float = spec(4.0, "s", "no second turn declaration this soon after one",
+                                 min=0.0, max=600.0)
+    turning_flag_s: float = spec(15.0, "s", "TURNING flag stays set this long after a reset",
+                                 min=0.0, max=600.0)
+    stale_after_s: float = spec(10.0, "s", "no accepted fix for this long: STALE",
+                                min=0.1, max=3600.0)
+    lost_after_s: float = spec(30.0, "s", "no accepted fix for this long: LOST",
+                               min=0.1, max=3600.0)
+    lost_sigma_m: float = spec(30.0, "m", "predicted position 1σ above this: LOST",
+                               min=0.1, max=1e5)
+    clock_tol_s: float = spec(2.0, "s", "an event whose runtime-minus-UTC time differs "
+                              "from the running estimate by more than this is refused "
+                              "(`clock`), unless 5 in a row agree (the clock jumped)",
+                              min=0.01, max=3600.0)
+    feed_latency_s: float = spec(0.0, "s", "smallest delay from detection at the buoy to "
+                                 "reception by the runtime (maps the acoustic UTC clock "
+                                 "onto the runtime clock)", min=0.0, max=60.0)
+
+    def validate(self) -> None:
+        ids = self.network.ids()
+        for b in self.sequence:
+            if b not in ids:
+                raise ValueError(f"sequence: beacon id {b} is not in the network {ids}")
+        if self.lost_after_s < self.stale_after_s:
+            raise ValueError("lost_after_s: must be ≥ stale_after_s")
+
+
+@dataclass(frozen=True, slots=True)
+class Network:
+    """Precomputed network: positions, ids, τ, listener distances and reply windows.
+
+    ``d[i]``: 3-D distance from beacon i to the listener (m); ``reply_lo[i]`` /
+    ``reply_hi[i]``: the physical window τ_i ≤ t^R − t^I ≤ τ_i + 2 d_i / c,
+    widened by the timing tolerance (s).
+    """
+
+    north: tuple[float, ...]
+    east: tuple[float, ...]
+    depth: tuple[float, ...]
+    ids: tuple[int, ...]
+    index: dict[int, int]
+    tau: tuple[float, ...]
+    d: tuple[float, ...]
+    reply_lo: tuple[float, ...]
+    reply_hi: tuple[float, ...]
+    delta: float
+    c: float
+    listener: int
+    tol: float
+
+    @classmethod
+    def from_params(cls, p: LblNetworkParams, timing_tol_s: float = 0.003) -> Network:
+        p.validate()
+        ids = tuple(p.ids())
+        north = tuple(float(b[0]) for b in p.beacons)
+        east = tuple(float(b[1]) for b in p.beacons)
+        depth = tuple(float(b[2]) for b in p.beacons)
+        k = p.listener_beacon
+        d = tuple(math.dist((north[i], east[i], depth[i]), (north[k], east[k], depth[k]))
+                  for i in range(len(ids)))
+        c = p.sound_speed_mps
+        tau = tuple(float(x) for x in p.turnaround_s)
+        return cls(north, east, depth, ids, {b: i for i, b in enumerate(ids)}, tau, d,
+                   tuple(tau[i] - timing_tol_s for i in range(len(ids))),
+                   tuple(tau[i] + 2.0 * d[i] / c + timing_tol_s for i in range(len(ids))),
+                   p.auv_delay_s, c, k, timing_tol_s)
+
+    @property
+    def n(self) -> int:
+        return len(self.ids)
+
+    @property
+    def max_reply_s(self) -> float:
+        """Longest physical reply delay of any beacon (s), tolerance included."""
+        return max(self.reply_hi)

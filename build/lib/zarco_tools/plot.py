@@ -1,0 +1,116 @@
+"""Plots of a simulated mission (the paper's Figs. 4 and 5)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from zarco_runtime.guidance.mission import Leg
+from zarco_tools.sim_report import SETTLE_M, TrackLog, xtrack_series
+
+
+def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str) -> None:
+    """Track over the planned lines, and cross-track error over time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    along, d, leg_idx = xtrack_series(log, legs)
+    t = np.asarray(log.t)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5),
+                                   gridspec_kw={"width_ratios": [1, 1.4]})
+    for leg in legs:
+        ax1.plot([leg.e0, leg.e1], [leg.n0, leg.n1], "k--", lw=1, alpha=0.6)
+    ax1.plot(log.y, log.x, "b-", lw=1.2, label="true track")
+    ax1.plot(log.y[:1], log.x[:1], "go", label="start")
+    ax1.set_xlabel("east (m)")
+    ax1.set_ylabel("north (m)")
+    ax1.set_aspect("equal", adjustable="datalim")
+    ax1.grid(True, alpha=0.3)
+    ax1.legend(loc="best", fontsize=8)
+    ax1.set_title("track over the planned lines (cf. paper Fig. 4)")
+    settled = along >= SETTLE_M
+    ax2.plot(t, d, color="0.75", lw=0.8, label="cross-track (all)")
+    dd = np.where(settled, d, np.nan)
+    ax2.plot(t, dd, "b-", lw=1.0, label=f"cross-track, ≥ {SETTLE_M:.0f} m into the leg")
+    for k in range(1, len(leg_idx)):
+        if leg_idx[k] != leg_idx[k - 1]:
+            ax2.axvline(t[k], color="k", lw=0.6, alpha=0.4)
+    finite = np.abs(dd[np.isfinite(dd)])
+    lim = max(0.1, float(np.percentile(finite, 99.5)) * 1.5) if finite.size else 1.0
+    ax2.set_ylim(-lim, lim)
+    ax2.set_xlabel("time (s)")
+    ax2.set_ylabel("cross-track error d (m, + starboard)")
+    ax2.grid(True, alpha=0.3)
+    ax2.legend(loc="upper right", fontsize=8)
+    ax2.set_title("cross-track error (cf. paper Fig. 5); vertical lines: leg changes")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str) -> None:
+    """Tracks, the AUV's estimated velocity and course (paper Figs. 7, 8) and the
+    ASV–AUV distance (Fig. 9)."""
+    import math
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from zarco_core.auv_messages import AuvFix, AuvTrack, TrackFlags
+
+    auv = extra.get("auv_log", [])
+    msgs = extra.get("auv_msgs", [])
+    tracks = [m for m in msgs if isinstance(m, AuvTrack) and not m.lost
+              and m.flags & TrackFlags.LINE_VALID]
+    fixes = [m for m in msgs if isinstance(m, AuvFix) and m.accepted and not m.range_only]
+    fig, axs = plt.subplots(2, 2, figsize=(13, 9))
+    ax = axs[0][0]
+    ax.plot([a[2] for a in auv], [a[1] for a in auv], "r-", lw=1.5, label="AUV (truth)")
+    ax.plot(log.y, log.x, "b-", lw=1.0, label="ASV (truth)")
+    ax.plot([f.y_m for f in fixes], [f.x_m for f in fixes], "k.", ms=2, alpha=0.4,
+            label="passive fixes")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("tracks")
+    tt = [m.t for m in tracks]
+    ax = axs[0][1]
+    ax.plot(tt, [m.vx_mps for m in tracks], "b-", label="v_x (north)")
+    ax.plot(tt, [m.vy_mps for m in tracks], "r-", label="v_y (east)")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("m/s")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("estimated AUV velocity (cf. paper Fig. 7)")
+    ax = axs[1][0]
+    # course in [0, 360): no wrap at the usual north/south survey courses
+    ax.plot(tt, [math.degrees(m.psi_auv_rad) % 360.0 for m in tracks], "b.", ms=2,
+            label="estimated")
+    ax.plot([a[0] for a in auv], [math.degrees(a[3]) % 360.0 for a in auv],
+            "k--", lw=0.8, label="true")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("course (deg)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("AUV course (cf. paper Fig. 8)")
+    ax = axs[1][1]
+    n = min(len(log.t), len(auv))
+    ax.plot(log.t[:n], [math.hypot(log.x[i] - auv[i][1], log.y[i] - auv[i][2])
+                        for i in range(n)], "b-")
+    ax.axhline(3.0, color="k", lw=0.6, ls=":")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("distance (m)")
+    ax.grid(True, alpha=0.3)
+    ax.set_title("horizontal distance ASV–AUV (cf. paper Fig. 9)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

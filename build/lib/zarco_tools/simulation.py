@@ -1,0 +1,314 @@
+"""``zarco sim``: the runtime against the simulated backend, on the virtual clock.
+
+One process, one event loop: the simulated devices (drivers.sim.backend)
+write real NMEA bytes into in-memory ports; the *unchanged* runtime reads
+them through its drivers, estimates, guides, controls and writes ``$PZTHR``
+bytes back to the simulated thruster controller.  The virtual clock jumps
+from event to event, so a mission simulates much faster than real time.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import signal
+import sys
+import time
+from collections.abc import Callable, Coroutine
+from dataclasses import dataclass
+from typing import Any
+
+from drivers.sim.acoustics import AcousticWorld
+from drivers.sim.auv import Auv
+from drivers.sim.backend import SimBackend
+from drivers.sim.ports import SimPorts
+from drivers.sim.world import SimWorld
+from zarco_core.auv_messages import AuvFix, AuvTrack
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock, run_virtual
+from zarco_core.geodesy import LocalFrame
+from zarco_core.messages import (
+    CommandAck,
+    Event,
+    Fault,
+    GuidanceStatus,
+    NavState,
+    ThrusterCommand,
+)
+from zarco_runtime.guidance.directive import Directive
+from zarco_runtime.guidance.mission import Leg, Mission, build_legs
+from zarco_runtime.runtime import Runtime
+from zarco_runtime.supervision.local import LocalCommands
+from zarco_runtime.supervision.supervisor import Boot
+from zarco_tools.follow_report import follow_figures
+from zarco_tools.hold_report import hold_figures
+from zarco_tools.scenario import Scenario
+from zarco_tools.sim_report import TrackLog, line_figures
+
+ProgressFn = Callable[[float, float, int, int], None]
+
+
+class _Stop(Exception):
+    """Raised inside the task group to end the simulation."""
+
+
+@dataclass(slots=True)
+class SimResult:
+    scenario: Scenario
+    legs: list[Leg]
+    log: TrackLog
+    report: dict[str, Any]
+    extra: dict[str, Any]
+
+
+def boot_mission(scn: Scenario, legs: list[Leg]) -> Boot:
+    """The scenario's mission as the runtime's boot mission."""
+    if scn.mission.kind == "follow":
+        mission: Mission | None = Mission("follow", name=scn.scenario.name)
+    elif scn.mission.kind == "lines" and legs:
+        mission = Mission("lines", tuple(legs), scn.scenario.name)
+    else:
+        mission = None
+    return Boot(mission, bool(scn.mission.autostart))
+
+
+async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
+                    progress: ProgressFn | None, counters: dict[str, Any]) -> None:
+    world = SimWorld(scn.world, scn.scenario.seed)
+    clock = Clock(utc_offset_s=world.utc_epoch_s(0.0))
+    bus = Bus()
+    ports = SimPorts()
+    backend = SimBackend(world, ports, clock, scn.faults, scn.scenario.seed)
+    follow = scn.mission.kind == "follow" or scn.runtime.devices.buoy.enabled
+    acoustics: AcousticWorld | None = None
+    if follow and scn.auv is not None and scn.lbl is not None:
+        acoustics = AcousticWorld(scn.lbl, Auv(scn.auv), scn.scenario.seed + 1_000_003,
+                                  world.utc_epoch_s(0.0),
+                                  (scn.world.origin_lat_deg, scn.world.origin_lon_deg))
+        backend.add_acoustics(acoustics)
+        counters["acoustics"] = acoustics
+        bus.tap(lambda m: counters.setdefault("auv_msgs", []).append(m)
+                if isinstance(m, (AuvFix, AuvTrack)) else None)
+    runtime = Runtime(scn.runtime, bus, clock, ports, boot_mission(scn, legs))
+    counters["runtime"] = runtime
+    if counters.get("realtime"):
+        clock = Clock()  # real UTC: telemetry times are comparable with the shore's
+        runtime.clock = clock
+    guid = bus.latest(GuidanceStatus)
+    cmd = bus.latest(ThrusterCommand)
+    faults: list[str] = []
+    bus.tap(lambda m: faults.append(m.reason) if isinstance(m, Fault) else None)
+    events: list[Event] = counters.setdefault("events", [])
+    bus.listen(Event, events.append)
+    acks: list[CommandAck] = counters.setdefault("acks", [])
+    bus.listen(CommandAck, acks.append)
+    directives: list[Directive] = counters.setdefault("directives", [])
+    bus.listen(Directive, lambda d: directives.append(d)
+               if not directives or directives[-1].seq != d.seq else None)
+    limit = scn.scenario.max_duration_s
+    done = asyncio.Event()
+
+    def on_guidance(g: GuidanceStatus) -> None:
+        if g.mode == "lines" and g.complete and not scn.commands:
+            done.set()
+
+    bus.listen(GuidanceStatus, on_guidance)
+
+    every = int(max(1, 10 * scn.scenario.record_hz))
+    auv_log: list[tuple[float, float, float, float]] = counters.setdefault("auv_log", [])
+
+    nav = bus.latest(NavState)
+    nav_err: list[tuple[float, float, float, float]] = counters.setdefault("nav_err", [])
+
+    def record(t: float) -> None:
+        s = world.truth()
+        g = guid.value
+        c = cmd.value
+        n = nav.value
+        if n is not None and n.pos_valid and n.heading_valid:
+            # the estimate as the controller uses it: extrapolated to now
+            age = t - n.t
+            nav_err.append((t, n.x_m + n.vn_mps * age - s.x_m, n.y_m + n.ve_mps * age - s.y_m,
+                            math.remainder(n.psi_rad + n.r_rps * age - s.psi_rad, math.tau)))
+        log.add(t, s.x_m, s.y_m, s.psi_rad, g.leg if g else 0,
+                c.u1 if c else 0.0, c.u2 if c else 0.0)
+        if acoustics is not None:
+            a = acoustics.auv_truth(t)
+            auv_log.append((t, a.x_m, a.y_m, a.psi_rad))
+        if progress is not None and len(log.t) % every == 0:
+            progress(t, limit, g.leg if g else 0, len(legs))
+
+    backend.add_periodic(scn.scenario.record_hz, record)
+    local = LocalCommands(bus, clock, source="scenario")
+
+    async def script() -> None:
+        for c in sorted(scn.commands, key=lambda c: c.at_s):
+            await clock.sleep_until(c.at_s)
+            await local.send(c.name, dict(c.args))
+
+    async def supervisor() -> None:
+        realtime = counters.get("realtime", False)
+        stop = done
+        if realtime:  # the boat runs until a signal or the time limit
+            stop = asyncio.Event()
+            loop = asyncio.get_running_loop()
+            for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+                loop.add_signal_handler(sig, lambda s=sig: (counters.__setitem__(
+                    "stop", f"signal {s.name}"), stop.set()))
+        try:
+            await asyncio.wait_for(stop.wait(), timeout=limit)
+            counters.setdefault("stop", "mission complete")
+        except TimeoutError:
+            counters["stop"] = f"time limit {limit} s"
+        counters["sim_seconds"] = clock.now()
+        raise _Stop
+
+    try:
+        async with asyncio.TaskGroup() as tg:
+            for name, fn in backend.tasks():
+                tg.create_task(fn(), name=f"sim.{name}")
+            tg.create_task(runtime.run(), name="runtime")
+            tg.create_task(script(), name="sim.script")
+            for i, extra in enumerate(counters.get("extra_tasks", [])):
+                tg.create_task(extra(runtime), name=f"sim.extra{i}")
+            tg.create_task(supervisor(), name="sim.supervisor")
+    except* _Stop:
+        pass
+    ctl = runtime.live.control
+    counters["control_ticks"] = ctl.ticks if ctl else 0
+    counters["saturated_ticks"] = ctl.saturated_ticks if ctl else 0
+    counters["faults"] = sorted(set(faults))
+    counters["devices"] = {
+        "gps": dict(runtime.gps.counters),
+        "compass": dict(runtime.compass.counters),
+        "thrusters": dict(runtime._thrusters.counters) if runtime._thrusters else {},
+    }
+    counters["sim_thruster_controller"] = backend.counters
+    counters["sim_events"] = backend.events
+    wt = world.thrusters
+    counters["last_command"] = (wt.u1, wt.u2)
+    if runtime.cfg.devices.buoy.enabled and runtime.live.tracking is not None:
+        counters["devices"]["buoy"] = dict(runtime.buoy.counters)
+        counters["tracker"] = runtime.live.tracking.tracker.counters()
+
+
+#: navigation errors are counted from this time (s): the first fixes and headings
+NAV_SETTLE_S = 10.0
+
+
+def nav_figures(err: list[tuple[float, float, float, float]]) -> dict[str, Any]:
+    """RMS of the navigation estimate (as the controller extrapolates it) against the
+    simulator's truth from ``NAV_SETTLE_S``: horizontal position (m), heading (deg)."""
+    e = [x for x in err if x[0] >= NAV_SETTLE_S]
+    if not e:
+        return {"nav_position_rms_m": math.nan, "nav_heading_rms_deg": math.nan}
+    return {
+        "nav_position_rms_m": math.sqrt(sum(a * a + b * b for _, a, b, _ in e) / len(e)),
+        "nav_heading_rms_deg": math.degrees(math.sqrt(sum(p * p for *_, p in e) / len(e))),
+    }
+
+
+def command_step_rms(log: TrackLog) -> float:
+    """RMS change of the thruster commands between true-track samples (% of full
+    scale, both thrusters): how busy the thrusters are kept."""
+    import numpy as np
+
+    if len(log.u1) < 2:
+        return 0.0
+    du = np.concatenate([np.diff(log.u1), np.diff(log.u2)])
+    return round(float(np.sqrt(np.mean(du * du))), 3)
+
+
+class RealTimeLoop(asyncio.SelectorEventLoop):
+    """A normal event loop whose time starts at 0 when it is made (the simulated
+    world's time origin): ``zarco sim --realtime``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._t0 = time.monotonic()
+
+    def time(self) -> float:
+        return time.monotonic() - self._t0
+
+
+ExtraTask = Callable[[Runtime], Coroutine[Any, Any, None]]
+
+
+def run_scenario(scn: Scenario, progress: ProgressFn | None = None,
+                 realtime: bool = False, extra_tasks: list[ExtraTask] | None = None
+                 ) -> SimResult:
+    """Simulate ``scn`` to the end of its mission (or its time limit); with
+    ``realtime``, at 1× on a real clock until a signal or the time limit, with
+    whichever links the runtime's configuration enables.  ``extra_tasks`` run beside
+    the runtime (given it): a test's or benchmark's fake operator, say."""
+    o = scn.runtime.origin
+    legs = build_legs(scn.mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m))
+    log = TrackLog()
+    counters: dict[str, Any] = {"extra_tasks": list(extra_tasks or [])}
+    w0 = time.perf_counter()
+    if realtime:
+        import datetime as dt
+
+        counters["realtime"] = True
+        scn.world.start_utc = dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+        loop = RealTimeLoop()
+        try:
+            asyncio.set_event_loop(loop)
+            loop.run_until_complete(_simulate(scn, legs, log, progress, counters))
+        finally:
+            asyncio.set_event_loop(None)
+            loop.close()
+    else:
+        run_virtual(_simulate(scn, legs, log, progress, counters))
+    wall = time.perf_counter() - w0
+    sim_s = float(counters.get("sim_seconds", log.t[-1] if log.t else 0.0))
+    ticks = max(1, int(counters.get("control_ticks", 1)))
+    report: dict[str, Any] = {
+        "scenario": scn.scenario.name,
+        "seed": scn.scenario.seed,
+        "stop": counters.get("stop"),
+        "sim_seconds": round(sim_s, 3),
+        "wall_seconds": round(wall, 3),
+        "speedup": round(sim_s / wall, 1) if wall > 0 else math.inf,
+        **(line_figures(log, legs) if scn.mission.kind == "lines"
+           else follow_figures(log, counters) if scn.mission.kind == "follow" else {}),
+        **hold_figures(log, counters.get("directives", [])),
+        **nav_figures(counters.get("nav_err", [])),
+        "saturation_fraction": counters.get("saturated_ticks", 0) / ticks,
+        "command_step_rms": command_step_rms(log),
+        "faults": counters.get("faults", []),
+        "devices": counters.get("devices", {}),
+        "sim_thruster_controller": counters.get("sim_thruster_controller", {}),
+        "last_thruster_command": counters.get("last_command"),
+        **({"tracker": counters["tracker"]} if "tracker" in counters else {}),
+    }
+    return SimResult(scn, legs, log, report, counters)
+
+
+class StatusLine:
+    """A running status on stderr: rewritten in place on a terminal, sparse otherwise."""
+
+    def __init__(self, stream: Any = sys.stderr) -> None:
+        self.stream = stream
+        self.tty = bool(getattr(stream, "isatty", lambda: False)())
+        self.w0 = time.perf_counter()
+        self.last = -1e9
+
+    def __call__(self, t: float, limit: float, leg: int, legs: int) -> None:
+        now = time.perf_counter()
+        if now - self.last < (0.2 if self.tty else 5.0):
+            return
+        self.last = now
+        wall = now - self.w0
+        speed = t / wall if wall > 0 else 0.0
+        msg = f"sim {t:7.1f} s  leg {leg + 1}/{legs}  {speed:6.0f}× real time"
+        if self.tty:
+            self.stream.write("\r" + msg)
+        else:
+            self.stream.write(msg + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty:
+            self.stream.write("\r" + " " * 60 + "\r")
+            self.stream.flush()

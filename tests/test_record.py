@@ -1,0 +1,235 @@
+"""The recorder on simulations: everything on the bus and every raw device chunk is
+in the MCAP file with a JSON schema per type; the Foxglove map topics are there;
+a replay of the raw bytes gives back the navigation and the AUV track exactly;
+rotation, the free-space floor and a stalled writer never stop the runtime."""
+
+from __future__ import annotations
+
+import base64
+import io
+import itertools
+import json
+import math
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcap.reader import make_reader
+
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock, run_virtual
+from zarco_core.messages import Event, Fault, NavState
+from zarco_runtime.links.recorder.recorder import Recorder
+from zarco_runtime.links.recorder.writer import Options, Recording
+from zarco_runtime.settings import RuntimeConfig
+from zarco_tools.log.export import export
+from zarco_tools.log.info import summarize
+from zarco_tools.log.plot import collect
+from zarco_tools.log.reader import iter_messages, open_recording
+from zarco_tools.log.replay import replay, report
+from zarco_tools.scenario import load_scenario
+from zarco_tools.simulation import SimResult, run_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _follow(path: Path, seconds: float = 150.0) -> SimResult:
+    scn = load_scenario(ROOT / "config" / "scenarios" / "follow_turn.toml",
+                        [f"scenario.max_duration_s={seconds}"])
+    return run_scenario(scn, record=str(path))
+
+
+@pytest.fixture(scope="module")
+def follow(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SimResult]:
+    path = tmp_path_factory.mktemp("rec") / "follow.mcap"
+    return path, _follow(path)
+
+
+def test_every_message_and_raw_chunk_is_recorded_with_a_schema(follow: Any) -> None:
+    path, res = follow
+    with path.open("rb") as fh:  # a finished file: mcap's indexed reader
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        topics = Counter(ch.topic for _s, ch, _m in reader.iter_messages())
+        for ch in summary.channels.values():
+            sc = summary.schemas[ch.schema_id]
+            assert ch.message_encoding == "json" and sc.encoding == "jsonschema"
+            assert json.loads(sc.data)["type"] == "object"
+    nav = summary.schemas[next(c.schema_id for c in summary.channels.values()
+                               if c.topic == "/NavState")]
+    props = json.loads(nav.data)["properties"]
+    assert set(props) == set(NavState.__slots__)  # type: ignore[attr-defined]
+    assert props["x_m"]["type"] == "number" and props["pos_valid"]["type"] == "boolean"
+    assert {c["title"] for c in props["fix"]["oneOf"]} >= {"RTK_FIXED", "NONE"}
+    runtime = res.extra["runtime"]
+    # every bus message: what the bus published, the recording holds (plus its own
+    # raw and derived topics)
+    bus_topics = {t: n for t, n in topics.items()
+                  if not t.startswith(("/raw/", "/foxglove/"))}
+    after = [e for e in res.extra["events"] if e.text.startswith("recording closed")]
+    assert len(after) == 1  # told once the file is finished: the only one not in it
+    assert sum(bus_topics.values()) == runtime.bus.published - 1
+    for name in ("NavState", "GpsFix", "Heading", "ThrusterCommand", "AuvFix", "AuvTrack",
+                 "AcousticEvent", "VesselStatus", "Directive", "SimTruth"):
+        assert topics[f"/{name}"] > 0, name
+    # every raw byte each driver read, and every command written
+    rec = open_recording(str(path))
+    raw: Counter[str] = Counter()
+    for m in iter_messages(rec, {"/raw/gps/rx", "/raw/compass/rx", "/raw/buoy/rx",
+                                 "/raw/thrusters/tx"}):
+        d = m.json()
+        raw[m.topic] += len(base64.b64decode(d["data"]))
+        assert d["utc_s"] == pytest.approx(d["t"] + rec.utc_offset_s)
+    for dev in ("gps", "compass", "buoy"):
+        assert raw[f"/raw/{dev}/rx"] == res.report["devices"][dev]["bytes"], dev
+    tx = sum(1 for _ in iter_messages(rec, {"/raw/thrusters/tx"}))
+    assert tx == res.report["devices"]["thrusters"]["commands_sent"]
+    meta = rec.metadata
+    assert json.loads(meta["config"])["devices"]["gps"]["url"] == "sim://gps"
+    assert meta["version"] and meta["clock"] == "virtual"
+
+
+def test_foxglove_map_topics(follow: Any) -> None:
+    path, _res = follow
+    rec = open_recording(str(path))
+    msgs = list(iter_messages(rec, {"/foxglove/vessel", "/foxglove/auv", "/NavState"}))
+    vessel = [m for m in msgs if m.topic == "/foxglove/vessel"]
+    auv = [m for m in msgs if m.topic == "/foxglove/auv"]
+    assert vessel and auv
+    assert {m.schema for m in vessel + auv} == {"foxglove.LocationFix"}
+    nav = {round(m.json()["t"], 6): m.json() for m in msgs if m.topic == "/NavState"}
+    for m in vessel[::50]:
+        fix = m.json()
+        ts = fix["timestamp"]["sec"] + fix["timestamp"]["nsec"] * 1e-9
+        n = nav[round(ts - rec.utc_offset_s, 6)]  # the estimate it was made of
+        assert fix["latitude"] == pytest.approx(n["lat_deg"], abs=1e-12)
+        assert fix["longitude"] == pytest.approx(n["lon_deg"], abs=1e-12)
+        assert len(fix["position_covariance"]) == 9 and fix["position_covariance_type"] == 3
+    # the AUV marker is the tracker's filtered position, about the origin
+    o = json.loads(rec.metadata["config"])["origin"]
+    a = auv[-1].json()
+    assert abs(a["latitude"] - o["lat_deg"]) < 0.01 and abs(a["longitude"] - o["lon_deg"]) < 0.01
+    # 5 Hz at most (location_hz)
+    ts = [m.log_ns / 1e9 for m in vessel]
+    assert min(b - a for a, b in itertools.pairwise(ts)) >= 0.2 - 1e-6
+
+
+def test_replay_reproduces_navigation_and_auv_track_exactly(follow: Any) -> None:
+    path, _res = follow
+    r = report(replay(open_recording(str(path))))
+    for key in ("nav", "auv_fix", "auv_track"):
+        assert r[key]["exact"], (key, r[key])
+        assert r[key]["recorded"] > 10
+    # a tuning change shows: the same bytes, another estimate
+    r2 = report(replay(open_recording(str(path)), ["navigation.estimator=ekf"]))
+    assert not r2["nav"]["exact"] and 0.0 < r2["nav"]["position_rms_m"] < 2.0
+    assert r2["auv_track"]["exact"]  # the tracker does not read the vessel's estimate
+
+
+def test_info_export_and_plot_read_the_recording(follow: Any, tmp_path: Path) -> None:
+    path, res = follow
+    rec = open_recording(str(path))
+    s = summarize(rec)
+    assert s["finished"] and s["duration_s"] == pytest.approx(150.0, abs=0.5)
+    assert s["topics"]["/GpsFix"]["rate_hz"] == pytest.approx(20.0, rel=0.01)
+    assert any("mode follow" in e["text"] for e in s["mode_changes"])
+    buf = io.StringIO()
+    n = export(rec, "/NavState", buf)
+    rows = buf.getvalue().splitlines()
+    assert n == s["topics"]["/NavState"]["count"] == len(rows) - 1
+    assert rows[0].startswith("log_utc_s,t,x_m,y_m")
+    f = collect(rec)
+    # the same track the simulation logged for its own plot
+    assert f.kind == "follow" and f.truth
+    assert f.log.x == res.log.x and f.log.t == res.log.t
+    assert [a[1:] for a in f.extra["auv_log"]] == [a[1:] for a in res.extra["auv_log"]]
+
+
+def test_rotation_parts_are_finished_and_continuous(tmp_path: Path) -> None:
+    scn = load_scenario(ROOT / "config" / "scenarios" / "rectangle.toml",
+                        ["scenario.max_duration_s=120", "runtime.record.max_file_mb=1"])
+    path = tmp_path / "rect.mcap"
+    run_scenario(scn, record=str(path))
+    parts = [path, *sorted(tmp_path.glob("rect-*.mcap"))]
+    assert len(parts) >= 2 and parts[1].name == "rect-002.mcap"
+    rec = open_recording([str(p) for p in parts])
+    t = [m.json()["t"] for m in iter_messages(rec, {"/SimTruth"})]
+    assert all(rec.finished.values()) and not rec.truncated
+    assert t == pytest.approx([0.1 * (k + 1) for k in range(len(t))]) and t[-1] > 119.0
+    for p in parts:
+        meta = open_recording(str(p)).metadata
+        assert meta["part"] == str(parts.index(p) + 1) and "config" in meta
+
+
+def test_disk_floor_stops_recording_with_a_fault_not_the_run(tmp_path: Path) -> None:
+    scn = load_scenario(ROOT / "config" / "scenarios" / "rectangle.toml",
+                        ["scenario.max_duration_s=20", "runtime.record.min_free_mb=1e7"])
+    res = run_scenario(scn, record=str(tmp_path / "full.mcap"))
+    assert res.report["stop"].startswith("time limit")  # the run went on to its end
+    events = [e for e in res.extra["events"] if e.source == "recorder"]
+    assert any(e.kind == "fault" and "below the floor" in e.text for e in events), events
+    assert not (tmp_path / "full.mcap").exists()
+
+
+def _batch(n: int, t0: float, ch: int = 1) -> bytes:
+    import struct
+    from array import array
+
+    datas = [json.dumps({"t": t0 + k, "v": k}).encode() for k in range(n)]
+    return b"".join([struct.pack("<Id", n, 1000.0), array("H", [ch] * n).tobytes(),
+                     array("d", [t0 + k for k in range(n)]).tobytes(),
+                     array("I", map(len, datas)).tobytes(), *datas])
+
+
+def test_writer_floor_mid_run_keeps_what_is_written(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Free space falls below the floor after some chunks: the file is finished with
+    everything written so far, and nothing more is taken."""
+    import zarco_runtime.links.recorder.writer as w
+
+    free = [1000.0]
+    monkeypatch.setattr(w, "free_mb", lambda path: free[0])
+    monkeypatch.setattr(w, "emit", lambda ev, **kw: events.append((ev, kw)))
+    events: list[tuple[str, dict[str, Any]]] = []
+    rec = Recording(Options(dir=str(tmp_path), base="run", min_free_mb=100.0, flush_s=0.0))
+    rec.add_channel({"id": 1, "topic": "/x", "schema_name": "x", "schema": "{}"})
+    rec.batch(memoryview(_batch(10, 0.0)))
+    rec.tick(force=True)
+    free[0] = 50.0
+    rec.batch(memoryview(_batch(10, 10.0)))
+    rec.tick(force=True)  # this chunk is written, then the floor is seen
+    rec.batch(memoryview(_batch(10, 20.0)))  # refused
+    rec.close()
+    assert [e for e, _ in events] == ["open", "close", "disk_low"]
+    (f,) = tmp_path.glob("*.mcap")
+    r = open_recording(str(f))
+    assert [m.json()["v"] for m in iter_messages(r)] == list(range(10)) * 2
+    assert all(r.finished.values()) and rec.dropped == 10
+
+
+def test_a_stalled_writer_never_blocks_the_publisher() -> None:
+    """Real time: batches a writer cannot take wait in a bounded queue and the
+    oldest are dropped, counted, with a fault; publishing never waits."""
+    cfg = RuntimeConfig()
+    cfg.record.queue_mb = 1.0
+    bus = Bus()
+    faults: list[Fault] = []
+    bus.listen(Fault, faults.append)
+    events: list[Event] = []
+    bus.listen(Event, events.append)
+
+    async def main() -> Recorder:
+        rec = Recorder(cfg, bus, Clock(utc_offset_s=0.0))
+        for k in range(20000):  # about 4 MB of NavState, never handed to a writer
+            bus.publish(NavState(k * 0.01, 1.0, 2.0, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 41.0,
+                                 -8.0, 4, True, True, tuple(float(i) for i in range(25))))
+            if k % 1000 == 999:
+                rec._batch()
+        return rec
+
+    rec = run_virtual(main())
+    assert rec.counters["dropped"] > 0 and rec.out_bytes <= 1e6
+    assert rec.counters["messages"] == 20000 + len(faults) + len(events)  # all taken
+    assert faults and "dropped" in faults[0].reason and math.isfinite(faults[0].t)
