@@ -28,6 +28,9 @@ from zarco_core.clock import Clock
 from zarco_core.messages import DeviceHealth, HealthState
 
 ParseFn = Callable[[str, float], list[Any]]
+#: ``raw(direction, t, data)``: a chunk read from (``"rx"``) or written to (``"tx"``)
+#: the device at runtime time ``t`` (set by a recorder; None: nobody records)
+RawHook = Callable[[str, float, bytes], None]
 
 #: reconnect backoff bounds (s): the jittered wait is 0.5–1 × the backoff, so
 #: never more than BACKOFF_MAX_S (under the issue's 1 s cap, with room for the
@@ -78,6 +81,8 @@ class DeviceLink:
         self._reading: Transport | None = None
         self._silent = False
         self.last_rx: float | None = None
+        #: the raw-bytes hook (a recorder's), or None
+        self.raw: RawHook | None = None
 
     def set_state(self, state: HealthState, reason: str = "") -> None:
         if state != self.state or reason != self.reason:
@@ -110,7 +115,9 @@ class DeviceLink:
                 self._silent = False
                 raise TransportError(f"no bytes for {self.cfg.reopen_s:g} s")
             raise TransportError("port closed")
-        self.last_rx = self.clock.now()
+        self.last_rx = t = self.clock.now()
+        if self.raw is not None:
+            self.raw("rx", t, chunk)
         return chunk
 
     async def _check_silence(self) -> None:
@@ -237,6 +244,8 @@ class NmeaDevice(DeviceLink):
         try:
             tr.write_nowait(chunk)
             self.counters["corrections_bytes"] += len(chunk)
+            if self.raw is not None:
+                self.raw("tx", self.clock.now(), chunk)
         except (TransportError, OSError):
             self.counters["corrections_dropped_bytes"] += len(chunk)
 

@@ -48,6 +48,8 @@ class ThrusterDriver(DeviceLink):
         try:
             tr.write_nowait(data)
             self.counters["commands_sent"] += 1
+            if self.raw is not None:
+                self.raw("tx", self.clock.now(), data)
         except (TransportError, OSError) as exc:
             self.counters["write_errors"] += 1
             self.set_state(HealthState.DISCONNECTED, f"write failed: {exc}")
@@ -75,6 +77,8 @@ class ThrusterDriver(DeviceLink):
                 with contextlib.suppress(Exception):
                     self.tr.write_nowait(ZERO)
                     self.counters["commands_sent"] += 1
+                    if self.raw is not None:
+                        self.raw("tx", self.clock.now(), ZERO)
 
     async def _watchdog(self) -> None:
         clock = self.clock
@@ -115,5 +119,7 @@ class ThrusterDriver(DeviceLink):
                 with contextlib.suppress(Exception):  # last words before the port closes
                     tr.write_nowait(ZERO)
                     self.counters["commands_sent"] += 1
+                    if self.raw is not None:
+                        self.raw("tx", self.clock.now(), ZERO)
                 with contextlib.suppress(Exception):
                     await tr.close()

@@ -31,6 +31,7 @@ from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext, Factory, Runnable, Supervised
 from zarco_core.messages import HealthState, ThrusterCommand, VesselStatus
 from zarco_runtime.control.task import ControlTask
+from zarco_runtime.links.recorder.recorder import recorder_factory
 from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.sd_notify import Notifier, devices_opened
 from zarco_runtime.settings import RuntimeConfig
@@ -63,8 +64,10 @@ class Runtime:
 
     def __init__(self, cfg: RuntimeConfig, bus: Bus | None = None, clock: Clock | None = None,
                  ports: Ports | None = None, boot: Boot | None = None,
-                 notify: tuple[str, int | None] | None = None) -> None:
+                 notify: tuple[str, int | None] | None = None,
+                 config_dir: str = ".") -> None:
         self.cfg = cfg
+        self.config_dir = config_dir  # relative paths of the configuration start here
         self.bus = bus or Bus()
         self.clock = clock or Clock()
         self.ports = ports or SystemPorts()
@@ -85,6 +88,9 @@ class Runtime:
         self._thrusters: ThrusterDriver | None = None
         self.components: list[Supervised] = []
         add = self._add
+        if cfg.record.enabled:
+            add("recorder", recorder_factory(cfg, self.bus, self.clock, self.boot, lambda: (
+                self.gps, self.compass, self.buoy, self._thrusters), self.config_dir))
         if dev.gps.enabled:
             add("gps", lambda ctx: self._keep("gps", self.gps))
         if dev.compass.enabled:

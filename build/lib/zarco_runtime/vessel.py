@@ -23,7 +23,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-from zarco_core.config import ConfigError
+from zarco_core.config import ConfigError, load_toml
 from zarco_core.messages import Event, VesselStatus
 from zarco_runtime import sd_notify
 from zarco_runtime.config_file import boot_mission, check_runtime, load_runtime_config
@@ -72,6 +72,14 @@ class StatusFile:
         self.fh.close()
 
 
+def _sets(config: str, overrides: list[str], table: str, key: str) -> bool:
+    """Whether the file or an override sets ``[table] key``."""
+    raw = load_toml(config).get(table)
+    if isinstance(raw, dict) and key in raw:
+        return True
+    return any(o.split("=", 1)[0].strip() == f"{table}.{key}" for o in overrides)
+
+
 def device_urls(runtime: Runtime) -> dict[str, str]:
     return {f"devices.{n}.url": d.url for n, d in runtime.cfg.devices.items() if d.enabled}
 
@@ -82,8 +90,11 @@ def run_vessel(config: str, overrides: list[str], status: str | None = None,
     cfg, mission = load_runtime_config(config, overrides)
     file = config if not overrides else f"{config} (with --set)"
     check_runtime(cfg, mission, file)
+    if not _sets(config, overrides, "record", "enabled"):
+        cfg.record.enabled = True  # the vessel records unless told not to
     boot = boot_mission(cfg, mission, Path(config).stem)
-    runtime = Runtime(cfg, boot=boot, notify=sd_notify.from_environment())
+    runtime = Runtime(cfg, boot=boot, notify=sd_notify.from_environment(),
+                      config_dir=str(Path(config).resolve().parent))
     for hook in hooks or []:
         hook(runtime)
     lock = InstanceLock(device_urls(runtime))

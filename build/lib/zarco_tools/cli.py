@@ -1,6 +1,7 @@
 """Sub-commands of ``zarco`` for simulation and evaluation: ``sim`` (the runtime
 against the simulated backend on the virtual clock), ``navreport`` (the
-navigation EKF over NMEA captures), ``decode`` and ``replay`` (NMEA captures).
+navigation EKF over NMEA captures), ``decode`` and ``replay`` (NMEA captures),
+``log`` (recordings: info, plot, export, replay).
 
 Registered through the ``zarco.commands`` entry point; the onboard ``zarco
 run`` never loads this module.
@@ -101,7 +102,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         if args.realtime:
             print(f"zarco sim: {scn.scenario.name} running in real time (links as configured); "
                   "SIGTERM or Ctrl-C ends it", file=sys.stderr, flush=True)
-        res = run_scenario(scn, progress=status, realtime=args.realtime)
+        res = run_scenario(scn, progress=status, realtime=args.realtime, record=args.record)
     finally:
         if status is not None:
             status.close()
@@ -125,6 +126,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
         print(f"\nreport: {args.report}")
     if args.plot:
         print(f"plot:   {args.plot}")
+    if args.record:
+        print(f"record: {args.record}")
     return 0
 
 
@@ -178,6 +181,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="run the simulated boat at 1x on a real clock, with whichever links "
                    "the scenario's [runtime] enables (shore, MAVLink), until SIGTERM/Ctrl-C "
                    "(exit 0) or scenario.max_duration_s")
+    s.add_argument("--record", metavar="FILE.mcap",
+                   help="record the run (every bus message, raw device bytes, the simulator's "
+                   "truth) into this MCAP file, as zarco run records (zarco log reads it)")
     s.set_defaults(func=cmd_sim)
 
     n = sub.add_parser(
@@ -229,4 +235,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="play the capture K times (0: forever)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     r.set_defaults(func=cmd_replay)
+
+    from zarco_tools.log.cli import register_log
+
+    register_log(sub)
 

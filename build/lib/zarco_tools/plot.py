@@ -10,8 +10,10 @@ from zarco_runtime.guidance.mission import Leg
 from zarco_tools.sim_report import SETTLE_M, TrackLog, xtrack_series
 
 
-def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str) -> None:
-    """Track over the planned lines, and cross-track error over time."""
+def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str,
+               truth: bool = True) -> None:
+    """Track over the planned lines, and cross-track error over time (``truth``:
+    the simulator's true track; else the vessel's estimate, from a recording)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -23,7 +25,7 @@ def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str) -> 
                                    gridspec_kw={"width_ratios": [1, 1.4]})
     for leg in legs:
         ax1.plot([leg.e0, leg.e1], [leg.n0, leg.n1], "k--", lw=1, alpha=0.6)
-    ax1.plot(log.y, log.x, "b-", lw=1.2, label="true track")
+    ax1.plot(log.y, log.x, "b-", lw=1.2, label="true track" if truth else "estimated track")
     ax1.plot(log.y[:1], log.x[:1], "go", label="start")
     ax1.set_xlabel("east (m)")
     ax1.set_ylabel("north (m)")
@@ -52,9 +54,11 @@ def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str) -> 
     plt.close(fig)
 
 
-def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str) -> None:
+def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str,
+                truth: bool = True) -> None:
     """Tracks, the AUV's estimated velocity and course (paper Figs. 7, 8) and the
-    ASV–AUV distance (Fig. 9)."""
+    ASV–AUV distance (Fig. 9) (``truth``: the simulator's true tracks; else the
+    vessel's estimate and the AUV's filtered track, from a recording)."""
     import math
 
     import matplotlib
@@ -71,8 +75,9 @@ def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str) -> Non
     fixes = [m for m in msgs if isinstance(m, AuvFix) and m.accepted and not m.range_only]
     fig, axs = plt.subplots(2, 2, figsize=(13, 9))
     ax = axs[0][0]
-    ax.plot([a[2] for a in auv], [a[1] for a in auv], "r-", lw=1.5, label="AUV (truth)")
-    ax.plot(log.y, log.x, "b-", lw=1.0, label="ASV (truth)")
+    what = "truth" if truth else "estimate"
+    ax.plot([a[2] for a in auv], [a[1] for a in auv], "r-", lw=1.5, label=f"AUV ({what})")
+    ax.plot(log.y, log.x, "b-", lw=1.0, label=f"ASV ({what})")
     ax.plot([f.y_m for f in fixes], [f.x_m for f in fixes], "k.", ms=2, alpha=0.4,
             label="passive fixes")
     ax.set_xlabel("east (m)")
@@ -95,7 +100,7 @@ def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str) -> Non
     ax.plot(tt, [math.degrees(m.psi_auv_rad) % 360.0 for m in tracks], "b.", ms=2,
             label="estimated")
     ax.plot([a[0] for a in auv], [math.degrees(a[3]) % 360.0 for a in auv],
-            "k--", lw=0.8, label="true")
+            "k--", lw=0.8, label="true" if truth else "filtered track")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("course (deg)")
     ax.grid(True, alpha=0.3)

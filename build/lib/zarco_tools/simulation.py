@@ -16,6 +16,7 @@ import sys
 import time
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from drivers.sim.acoustics import AcousticWorld
@@ -46,6 +47,27 @@ from zarco_tools.scenario import Scenario
 from zarco_tools.sim_report import TrackLog, line_figures
 
 ProgressFn = Callable[[float, float, int, int], None]
+
+
+@dataclass(slots=True)
+class SimTruth:
+    """The simulator's truth, on the bus only when a simulation is recorded
+    (``zarco sim --record``), so that a recording can be plotted as ``zarco sim
+    --plot`` plots the run: the vessel's true position ``x_m``, ``y_m`` (NED m)
+    and heading ``psi_rad``, the active ``leg`` and the commands ``u1``, ``u2``
+    then; the AUV's true position ``auv_x_m``, ``auv_y_m`` and course
+    ``auv_psi_rad`` (NaN without an AUV)."""
+
+    t: float
+    x_m: float
+    y_m: float
+    psi_rad: float
+    leg: int
+    u1: float
+    u2: float
+    auv_x_m: float = math.nan
+    auv_y_m: float = math.nan
+    auv_psi_rad: float = math.nan
 
 
 class _Stop(Exception):
@@ -119,6 +141,7 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
 
     nav = bus.latest(NavState)
     nav_err: list[tuple[float, float, float, float]] = counters.setdefault("nav_err", [])
+    recording = scn.runtime.record.enabled
 
     def record(t: float) -> None:
         s = world.truth()
@@ -135,6 +158,10 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         if acoustics is not None:
             a = acoustics.auv_truth(t)
             auv_log.append((t, a.x_m, a.y_m, a.psi_rad))
+        if recording:
+            bus.publish(SimTruth(t, s.x_m, s.y_m, s.psi_rad, log.leg[-1], log.u1[-1],
+                                 log.u2[-1], *(auv_log[-1][1:] if acoustics is not None
+                                               else ())))
         if progress is not None and len(log.t) % every == 0:
             progress(t, limit, g.leg if g else 0, len(legs))
 
@@ -235,12 +262,16 @@ ExtraTask = Callable[[Runtime], Coroutine[Any, Any, None]]
 
 
 def run_scenario(scn: Scenario, progress: ProgressFn | None = None,
-                 realtime: bool = False, extra_tasks: list[ExtraTask] | None = None
-                 ) -> SimResult:
+                 realtime: bool = False, extra_tasks: list[ExtraTask] | None = None,
+                 record: str | None = None) -> SimResult:
     """Simulate ``scn`` to the end of its mission (or its time limit); with
     ``realtime``, at 1× on a real clock until a signal or the time limit, with
-    whichever links the runtime's configuration enables.  ``extra_tasks`` run beside
-    the runtime (given it): a test's or benchmark's fake operator, say."""
+    whichever links the runtime's configuration enables; with ``record``, into
+    that MCAP file (as ``zarco run`` records).  ``extra_tasks`` run beside the
+    runtime (given it): a test's or benchmark's fake operator, say."""
+    if record:
+        scn.runtime.record.enabled = True
+        scn.runtime.record.file = str(Path(record).resolve())
     o = scn.runtime.origin
     legs = build_legs(scn.mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m))
     log = TrackLog()

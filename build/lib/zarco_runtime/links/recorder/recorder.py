@@ -1,0 +1,456 @@
+"""The recorder: every bus message and every raw device chunk, to MCAP.
+
+A bus tap (:meth:`zarco_core.bus.Bus.tap`) encodes each message as JSON
+(orjson, about a microsecond) and appends it with its channel and the
+runtime time of publication to a list; each device driver hands its raw
+chunks to a hook (:attr:`drivers.nmea_device.DeviceLink.raw`), appended the
+same way, untouched.  Every ``flush_s`` the list goes, as one framed batch
+over a pipe, to the writer process (:mod:`.writer`) which writes MCAP with a
+JSON schema per message type, flushes chunks, rotates and watches the disk.
+Nothing in the control loop's path waits for a disk: the pipe is
+non-blocking, and batches a stalled writer cannot take are dropped, oldest
+first, and counted (on the virtual clock of a simulation the pipe blocks
+instead: a simulation waits for its recording, losing nothing).
+
+The tap is registered once (a bus tap cannot be removed), so the recorder
+object lives as long as the runtime and the supervised component only
+(re)starts its writer process: a writer that dies is a component failure, and
+the restarted component starts the next part of the same run.  When free
+space falls below ``min_free_mb`` or a write fails, the writer finishes the
+file and stops; the recorder publishes a :class:`~zarco_core.messages.Fault`
+and an ``Event`` and records nothing more in this run.  The process never
+stops for lack of disk.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import datetime as dt
+import fcntl
+import functools
+import json
+import logging
+import os
+import platform
+import select
+import subprocess
+import sys
+import time
+from array import array
+from collections import Counter, deque
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import orjson
+
+from drivers.nmea_device import DeviceLink
+from zarco_core.auv_messages import AuvTrack
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock, VirtualTimeEventLoop
+from zarco_core.component import ComponentContext, Factory
+from zarco_core.messages import Event, Fault, NavState
+from zarco_runtime.links.recorder.schema import (
+    LOCATION_FIX_SCHEMA,
+    OPTIONS,
+    RAW_CHUNK_SCHEMA,
+    json_default,
+    message_schema,
+)
+from zarco_runtime.links.recorder.writer import BATCH, HEADER
+from zarco_runtime.supervision.supervisor import Boot, mission_to_json
+
+if TYPE_CHECKING:
+    from zarco_runtime.settings import RuntimeConfig
+
+log = logging.getLogger("zarco.recorder")
+
+#: topics of the derived foxglove.LocationFix positions (map panel)
+DERIVED = {NavState: "vessel", AuvTrack: "auv"}
+#: in simulation, hand a batch over once it holds this many records
+SIM_BATCH = 4000
+#: loop turns a stopping recorder waits for the others' last messages
+SHUTDOWN_SPINS = 10
+#: how long a stopping runtime waits for the writer to finish its file (s)
+FINISH_TIMEOUT_S = 10.0
+
+Devices = Callable[[], Sequence[DeviceLink | None]]
+
+
+@functools.cache
+def software_version() -> str:
+    """The package version, and the git commit when run from a work tree (once a
+    process)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        v = version("zarco-runtime")
+    except PackageNotFoundError:
+        v = "unknown"
+    root = Path(__file__).resolve().parents[3]
+    if (root / ".git").exists():
+        with contextlib.suppress(OSError, subprocess.SubprocessError):
+            rev = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty"],
+                                 capture_output=True, text=True, timeout=5.0)
+            if rev.returncode == 0 and rev.stdout.strip():
+                v += f"+git.{rev.stdout.strip()}"
+    return v
+
+
+class Recorder:
+    """Records the bus and the devices' raw bytes for the life of the runtime."""
+
+    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock, boot: Boot | None = None,
+                 devices: Devices | None = None, base_dir: str = ".") -> None:
+        self.cfg = cfg
+        self.rc = cfg.record
+        self.bus = bus
+        self.clock = clock
+        self.boot = boot or Boot()
+        self.devices = devices or (lambda: ())
+        self.base_dir = base_dir
+        self.counters: Counter[str] = Counter()
+        # the records waiting for the writer: channel, runtime time, bytes
+        self.chans: list[int] = []
+        self.times: list[float] = []
+        self.datas: list[bytes] = []
+        self.channels: list[dict[str, Any]] = []
+        self.kinds: dict[type, int] = {}
+        self.on = [True]
+        self.stopped = ""
+        self.paths: list[str] = []
+        self.parts = 0
+        self.base = ""
+        self.t0: float | None = None
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.out: deque[tuple[bytes, int]] = deque()
+        self.out_bytes = 0
+        self._partial = b""
+        self._lines = b""
+        self._virtual = False
+        self._last_drain = time.monotonic()
+        self._hooked: set[int] = set()
+        self.version = ""
+        bus.tap(self._make_tap())
+        self._attach()  # the devices built so far read nothing unrecorded
+
+    # ------------------------------------------------------------- intake
+
+    def _make_tap(self) -> Callable[[Any], None]:
+        kinds = self.kinds
+        chans, times, datas = self.chans.append, self.times.append, self.datas.append
+        dumps = orjson.dumps
+        on = self.on
+        register = self._register
+
+        def tap(msg: Any) -> None:
+            # log time: the message's own time (every bus message has one), so the
+            # tap costs the encoding and three appends
+            if on[0]:
+                ch = kinds.get(type(msg))
+                if ch is None:
+                    ch = register(type(msg))
+                chans(ch)
+                times(getattr(msg, "t", 0.0))
+                datas(dumps(msg, default=json_default, option=OPTIONS))
+
+        return tap
+
+    def _channel(self, topic: str, schema_name: str, schema: bytes, **kw: Any) -> int:
+        cid = len(self.channels) + 1
+        d = {"op": "channel", "id": cid, "topic": topic, "schema_name": schema_name,
+             "schema": schema.decode(), **kw}
+        self.channels.append(d)
+        if self.proc is not None:
+            self._queue(self._json(d), 0)
+        return cid
+
+    def _register(self, kind: type) -> int:
+        name = kind.__name__
+        extra: dict[str, Any] = {}
+        if kind in DERIVED:
+            extra = {"derive": DERIVED[kind],
+                     "derive_schema": json.dumps(LOCATION_FIX_SCHEMA)}
+        try:
+            schema = message_schema(kind)
+        except Exception:  # not a dataclass: recorded, schema-less
+            schema = b"{}"
+        cid = self._channel(f"/{name}", f"zarco.{name}", schema, **extra)
+        self.kinds[kind] = cid
+        return cid
+
+    def _hook(self, device: str) -> Callable[[str, float, bytes], None]:
+        raw = json.dumps(RAW_CHUNK_SCHEMA).encode()
+        rx = self._channel(f"/raw/{device}/rx", "zarco.RawChunk", raw, raw=[device, "rx"])
+        tx = self._channel(f"/raw/{device}/tx", "zarco.RawChunk", raw, raw=[device, "tx"])
+        chans, times, datas = self.chans.append, self.times.append, self.datas.append
+        on = self.on
+
+        def hook(direction: str, t: float, data: bytes) -> None:
+            if on[0]:
+                chans(rx if direction == "rx" else tx)
+                times(t)
+                datas(data)
+
+        return hook
+
+    def _attach(self) -> None:
+        """Give every device driver (some are built late) the raw-bytes hook."""
+        if not self.rc.raw:
+            return
+        for dev in self.devices():
+            if dev is not None and dev.raw is None and not self.stopped:
+                dev.raw = self._hook(dev.name)
+
+    def _detach(self) -> None:
+        for dev in self.devices():
+            if dev is not None:
+                dev.raw = None
+
+    # ------------------------------------------------------------- writer
+
+    def _json(self, d: dict[str, Any]) -> bytes:
+        body = json.dumps(d).encode()
+        return HEADER.pack(b"J", len(body)) + body
+
+    def _metadata(self) -> dict[str, str]:
+        b = self.boot
+        boot = {"mission": mission_to_json(b.mission) if b.mission else None,
+                "autostart": b.autostart}
+        now = self.clock.now()
+        return {"version": self.version, "config": orjson.dumps(self.cfg, option=OPTIONS).decode(),
+                "boot": json.dumps(boot), "t0": repr(self.t0),
+                "utc_offset_s": repr(self.clock.utc(now) - now),
+                "started_utc": self.base.removeprefix("zarco-"),
+                "host": platform.node(), "argv": json.dumps(sys.argv),
+                "clock": "virtual" if self._virtual else "real"}
+
+    def _start_writer(self) -> None:
+        rc = self.rc
+        if self.t0 is None:
+            self.t0 = self.clock.now()
+            stamp = dt.datetime.fromtimestamp(self.clock.utc(self.t0), dt.UTC)
+            self.base = "zarco-" + stamp.strftime("%Y%m%dT%H%M%SZ")
+            self.version = software_version()
+        args = [sys.executable, "-m", "zarco_runtime.links.recorder.writer"]
+        if not self._virtual:
+            args += ["--nice", "5"]
+        self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     close_fds=True)
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        fd = self.proc.stdin.fileno()
+        with contextlib.suppress(OSError, AttributeError):
+            fcntl.fcntl(fd, fcntl.F_SETPIPE_SZ, 1 << 20)
+        os.set_blocking(fd, False)
+        os.set_blocking(self.proc.stdout.fileno(), False)
+        folder = rc.dir if os.path.isabs(rc.dir) else os.path.join(self.base_dir, rc.dir)
+        o = self.cfg.origin
+        start = {"op": "start", "dir": folder, "file": rc.file, "base": self.base,
+                 "max_file_mb": rc.max_file_mb, "min_free_mb": rc.min_free_mb,
+                 "flush_s": rc.flush_s, "fsync_s": rc.fsync_s, "location_hz": rc.location_hz,
+                 "origin": [o.lat_deg, o.lon_deg, o.alt_m], "first_part": self.parts,
+                 "metadata": self._metadata()}
+        data = [f for f in self.out if f[1] > 0]  # batches a dead writer did not take
+        self.out.clear()
+        self.out_bytes = 0
+        self._partial = b""
+        self._queue(self._json(start), 0)
+        for d in self.channels:
+            self._queue(self._json(d), 0)
+        for frame, n in data:
+            self._queue(frame, n)
+
+    def _queue(self, frame: bytes, n: int) -> None:
+        self.out.append((frame, n))
+        self.out_bytes += len(frame)
+        cap = self.rc.queue_mb * 1e6
+        if self._virtual:  # a simulation waits for its writer instead (_send)
+            return
+        while self.out_bytes > cap and len(self.out) > 1:
+            # drop the oldest batch (never a channel definition: those carry no records)
+            for i, (f, k) in enumerate(self.out):
+                if k > 0:
+                    del self.out[i]
+                    self.out_bytes -= len(f)
+                    self.counters["dropped"] += k
+                    if self.counters["drop_events"] == 0:
+                        self._fault("the writer falls behind: oldest messages dropped")
+                    self.counters["drop_events"] += 1
+                    break
+            else:
+                break
+
+    def _batch(self) -> None:
+        """Frame the pending records and queue them for the writer."""
+        n = len(self.datas)
+        if not n:
+            return
+        chans = array("H", self.chans).tobytes()
+        times = array("d", self.times).tobytes()
+        lens = array("I", map(len, self.datas)).tobytes()
+        payload = b"".join(self.datas)
+        self.chans.clear()
+        self.times.clear()
+        self.datas.clear()
+        if self.stopped:
+            return
+        now = self.clock.now()
+        offset = self.clock.utc(now) - now
+        body = b"".join((BATCH.pack(n, offset), chans, times, lens, payload))
+        self._queue(HEADER.pack(b"D", len(body)) + body, n)
+        self.counters["messages"] += n
+
+    def _send(self) -> None:
+        """Write queued frames to the writer's pipe (as much as it takes now)."""
+        proc = self.proc
+        if proc is None or proc.stdin is None:
+            return
+        fd = proc.stdin.fileno()
+        while self.out or self._partial:
+            if not self._partial:
+                frame, _n = self.out.popleft()
+                self.out_bytes -= len(frame)
+                self._partial = frame
+            try:
+                k = os.write(fd, self._partial)
+            except BlockingIOError:
+                if not (self._virtual and self.out_bytes > self.rc.queue_mb * 1e6):
+                    return  # the rest goes at the next turn
+                select.select([], [fd], [])  # simulation: too far behind, wait
+                continue
+            except (BrokenPipeError, OSError) as exc:
+                raise RuntimeError(f"recorder writer pipe: {exc}") from exc
+            self._partial = self._partial[k:]
+
+    def _events(self) -> None:
+        proc = self.proc
+        if proc is None or proc.stdout is None:
+            return
+        try:
+            data = os.read(proc.stdout.fileno(), 65536)
+        except (BlockingIOError, OSError):
+            data = b""
+        if not data:
+            return
+        self._lines += data
+        *lines, self._lines = self._lines.split(b"\n")
+        for line in lines:
+            with contextlib.suppress(ValueError):
+                self._event(json.loads(line))
+
+    def _event(self, ev: dict[str, Any]) -> None:
+        kind = ev.get("ev")
+        t = self.clock.now()
+        if kind == "open":
+            self.parts = int(ev.get("part", self.parts + 1))
+            self.paths.append(str(ev["path"]))
+            log.info("recording to %s", ev["path"])
+            self.bus.publish(Event(t, "record", f"recording to {ev['path']}", "recorder"))
+        elif kind == "close":
+            self.bus.publish(Event(t, "record", f"recording closed: {ev['path']} "
+                                   f"({ev.get('messages')} messages)", "recorder"))
+        elif kind in ("disk_low", "error"):
+            self._stop(str(ev.get("text", kind)))
+
+    def _fault(self, text: str) -> None:
+        t = self.clock.now()
+        log.error("recorder: %s", text)
+        self.bus.publish(Fault(t, "recorder", text))
+        self.bus.publish(Event(t, "fault", f"recorder: {text}", "recorder"))
+
+    def _stop(self, why: str) -> None:
+        if self.stopped:
+            return
+        self._fault(why)
+        self.stopped = why
+        self.on[0] = False
+        self.chans.clear()
+        self.times.clear()
+        self.datas.clear()
+        self._detach()
+
+    # ---------------------------------------------------------------- run
+
+    async def run(self) -> None:
+        if self.stopped:  # out of disk: nothing more this run, but never end the process
+            await asyncio.Event().wait()
+        self._virtual = isinstance(asyncio.get_running_loop(), VirtualTimeEventLoop)
+        self._start_writer()
+        self._attach()
+        proc = self.proc
+        assert proc is not None
+        period = self.rc.flush_s
+        try:
+            while True:
+                await asyncio.sleep(period)
+                self._attach()
+                if self._virtual and len(self.datas) < SIM_BATCH \
+                        and time.monotonic() - self._last_drain < period:
+                    continue
+                self._last_drain = time.monotonic()
+                self._batch()
+                self._send()
+                self._events()
+                if self.stopped:
+                    await asyncio.Event().wait()
+                if proc.poll() is not None:
+                    self._events()
+                    raise RuntimeError(f"recorder writer exited with code {proc.returncode}")
+        finally:
+            # the runtime is stopping: let the other components' last words (the
+            # thruster driver's zero) happen before the file is finished
+            with contextlib.suppress(asyncio.CancelledError):
+                for _ in range(SHUTDOWN_SPINS):
+                    await asyncio.sleep(0)
+            self._finish()
+
+    def _finish(self) -> None:
+        """Hand over what is pending and let the writer finish its file (blocking:
+        the runtime is stopping, or the writer is gone)."""
+        proc, self.proc = self.proc, None
+        if proc is None:
+            return
+        self._batch()
+        self.proc = proc
+        with contextlib.suppress(RuntimeError, OSError):
+            if proc.stdin is not None and proc.poll() is None:
+                os.set_blocking(proc.stdin.fileno(), True)
+                self._send()
+        self.proc = None
+        with contextlib.suppress(OSError):
+            if proc.stdin is not None:
+                proc.stdin.close()
+        try:
+            proc.wait(timeout=FINISH_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            log.error("recorder: the writer did not finish in %.0f s", FINISH_TIMEOUT_S)
+            proc.kill()
+            proc.wait()
+        self.proc = proc
+        self._events()
+        self.proc = None
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+
+class RecorderFactory:
+    """The recorder as a supervised component's factory: one :class:`Recorder`,
+    built with the runtime (its tap sees every message from the first; a tap
+    cannot be removed), whose writer restarts with the component."""
+
+    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock, boot: Boot | None,
+                 devices: Devices, base_dir: str = ".") -> None:
+        self.recorder = Recorder(cfg, bus, clock, boot, devices, base_dir)
+
+    def __call__(self, ctx: ComponentContext) -> Recorder:
+        return self.recorder
+
+
+def recorder_factory(cfg: RuntimeConfig, bus: Bus, clock: Clock, boot: Boot | None,
+                     devices: Devices, base_dir: str = ".") -> Factory:
+    """See :class:`RecorderFactory`."""
+    return RecorderFactory(cfg, bus, clock, boot, devices, base_dir)
+
+
+__all__ = ["Recorder", "RecorderFactory", "recorder_factory", "software_version"]
