@@ -25,9 +25,11 @@ as empty; fewer than that is refused (``field``).
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 from drivers.nmea import (
+    FastHandler,
     Handler,
     NmeaError,
     dispatch,
@@ -173,6 +175,97 @@ def decode_xdr(talker: str, fields: list[str], t: float, source: str,
     return [Attitude(t, source, pitch, roll)]
 
 
+# ------------------------------------------------------------- fast paths
+#
+# The common layouts, one regular expression each; anything else returns
+# None and goes to the decoders above (the reference, with the precise error).
+
+_DEC = r"(\d+(?:\.\d+)?)"
+_OFFSET = rf"(?:{_DEC},([EW])|,)"
+_HDT_RE = re.compile(rf"{_DEC}(?:,T?)?")
+_THS_RE = re.compile(rf"{_DEC},([AEMS])")
+_HDM_RE = re.compile(rf"{_DEC},M")
+_HDG_RE = re.compile(rf"{_DEC},{_OFFSET},{_OFFSET}")
+_ROT_RE = re.compile(r"(-?\d+(?:\.\d+)?),A")
+
+
+def fast_hdt(talker: str, rest: str, t: float, source: str,
+             variation_deg: float | None) -> list[Any] | None:
+    m = _HDT_RE.fullmatch(rest)
+    if m is None:
+        return None
+    deg = float(m[1])
+    if deg > 360.0:
+        return None
+    if deg == 360.0:
+        deg = 0.0
+    return [Heading(t, source, "HDT", wrap_2pi(math.radians(deg)), True, deg)]
+
+
+def fast_ths(talker: str, rest: str, t: float, source: str,
+             variation_deg: float | None) -> list[Any] | None:
+    m = _THS_RE.fullmatch(rest)
+    if m is None:
+        return None
+    deg = float(m[1])
+    if deg > 360.0:
+        return None
+    if deg == 360.0:
+        deg = 0.0
+    return [Heading(t, source, "THS", wrap_2pi(math.radians(deg)), True, deg)]
+
+
+def _fast_hdm(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _HDM_RE.fullmatch(rest)
+    if m is None:
+        return None
+    deg = float(m[1])
+    if deg > 360.0:
+        return None
+    return [heading_from_magnetic(t, source, "HDM", 0.0 if deg == 360.0 else deg, None,
+                                  variation_deg)]
+
+
+def _fast_hdg(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _HDG_RE.fullmatch(rest)
+    if m is None:
+        return None
+    raw_s, dev_s, dev_d, var_s, var_d = m.groups()
+    raw = float(raw_s)
+    dev = None if dev_s is None else float(dev_s)
+    var = None if var_s is None else float(var_s)
+    if (raw > 360.0 or (dev is not None and dev > OFFSET_MAX_DEG)
+            or (var is not None and var > OFFSET_MAX_DEG)):
+        return None
+    if dev is not None and dev_d == "W":
+        dev = -dev
+    if var is not None and var_d == "W":
+        var = -var
+    return [heading_from_magnetic(t, source, "HDG", 0.0 if raw == 360.0 else raw, dev,
+                                  var if var is not None else variation_deg)]
+
+
+def _fast_rot(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _ROT_RE.fullmatch(rest)
+    if m is None:
+        return None
+    dpm = float(m[1])
+    if abs(dpm) > ROT_MAX_DPM:
+        return None
+    return [RateOfTurn(t, source, math.radians(dpm) / 60.0)]
+
+
+COMPASS_FAST: dict[str, FastHandler] = {
+    "HDG": _fast_hdg,
+    "HDM": _fast_hdm,
+    "HDT": fast_hdt,
+    "THS": fast_ths,
+    "ROT": _fast_rot,
+}
+
 COMPASS_HANDLERS: dict[str, Handler] = {
     "HDG": decode_hdg,
     "HDM": decode_hdm,
@@ -192,4 +285,4 @@ def parse_compass(line: str, t: float, source: str = "compass",
     Attitude messages (``[]`` for an XDR without pitch/roll); raises
     ``NmeaError`` for anything rejected.
     """
-    return dispatch(line, COMPASS_HANDLERS, t, source, variation_deg)
+    return dispatch(line, COMPASS_HANDLERS, t, source, variation_deg, COMPASS_FAST)

@@ -61,10 +61,16 @@ VTG is refused (``invalid``).
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
-from drivers.compass_parser import decode_hdt, decode_ths
+from drivers.compass_parser import decode_hdt, decode_ths, fast_hdt, fast_ths
 from drivers.nmea import (
+    RE_POS,
+    RE_SDEC,
+    RE_TIME,
+    RE_UDEC,
+    FastHandler,
     Handler,
     NmeaError,
     days_since_epoch,
@@ -323,6 +329,195 @@ def decode_zda(talker: str, fields: list[str], t: float, source: str,
     return [GpsTime(t, source, days_since_epoch(year, month, day, "ZDA date") * 86400.0 + sod)]
 
 
+# ------------------------------------------------------------- fast paths
+#
+# The common layouts of the sentences the simulator and most receivers send,
+# matched by one regular expression each and converted with a few range
+# checks; anything else (or any doubt) returns None and goes to the decoder
+# above, which is the reference and raises the precise error.
+
+
+def _tod(hh: str | None, mm: str, ss: str) -> float | None:
+    """Seconds of the day of matched time groups; None if absent, -1 if out of range."""
+    if hh is None:
+        return None
+    h, m, sec = int(hh), int(mm), float(ss)
+    if h > 23 or m > 59 or sec >= 61.0:
+        return -1.0
+    return h * 3600 + m * 60 + sec
+
+
+#: what _pos returns for a position out of range
+_BAD_POS = (math.nan, math.nan)
+
+
+def _pos(ld: str | None, lm: str, ns: str, od: str, om: str, ew: str
+         ) -> tuple[float, float] | None:
+    """Matched position groups → (lat, lon); None if absent, _BAD_POS if out of range."""
+    if ld is None:
+        return None
+    a, b = float(lm), float(om)
+    lat, lon = int(ld) + a / 60.0, int(od) + b / 60.0
+    if a >= 60.0 or b >= 60.0 or lat > 90.0 or lon > 180.0:
+        return _BAD_POS
+    return (-lat if ns == "S" else lat), (-lon if ew == "W" else lon)
+
+
+_GGA_RE = re.compile(rf"{RE_TIME},{RE_POS},(\d)?,(\d\d?)?,{RE_UDEC},{RE_SDEC},M?,{RE_SDEC},M?,"
+                     rf"{RE_UDEC},(\d{{1,4}})?")
+
+
+def _fast_gga(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _GGA_RE.fullmatch(rest)
+    if m is None:
+        return None
+    hh, mi, ss, ld, lm, ns, od, om, ew, q, nsat_s, hdop_s, alt_s, sep_s, age_s, sta = m.groups()
+    utc = _tod(hh, mi, ss)
+    pos = _pos(ld, lm, ns, od, om, ew)
+    if (utc is not None and utc < 0.0) or pos is _BAD_POS:
+        return None
+    hdop = None if hdop_s is None else float(hdop_s)
+    alt = None if alt_s is None else float(alt_s)
+    age = None if age_s is None else float(age_s)
+    if ((hdop is not None and hdop > HDOP_MAX)
+            or (alt is not None and not ALT_MIN_M <= alt <= ALT_MAX_M)
+            or (sep_s is not None and abs(float(sep_s)) > GEOID_SEP_MAX_M)
+            or (age is not None and age > DGPS_AGE_MAX_S)
+            or (sta is not None and int(sta) > STATION_MAX)):
+        return None
+    nsat = None if nsat_s is None else int(nsat_s)
+    if pos is None:
+        return [GpsFix(t, source, "GGA", talker, FixQuality.NONE, None, None, alt, utc,
+                       nsat, hdop, age)]
+    few = talker in _GP_GN and (nsat or 0) < 3
+    fix = FixQuality.NONE if q is None or few else _GGA_QUALITY[int(q)]
+    return [GpsFix(t, source, "GGA", talker, fix, pos[0], pos[1], alt, utc, nsat, hdop, age)]
+
+
+_FAA_RE = "[" + _FAA_LETTERS + "]"
+_RMC_RE = re.compile(rf"{RE_TIME},([AV]),{RE_POS},{RE_UDEC},{RE_UDEC},(\d{{6}})?,"
+                     rf"(?:(\d+(?:\.\d+)?),([EW])|,)(?:,({_FAA_RE})?(?:,([SCUV])?)?)?")
+
+
+def _fast_rmc(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _RMC_RE.fullmatch(rest)
+    if m is None:
+        return None
+    hh, mi, ss, status, ld, lm, ns, od, om, ew, sog_s, cog_s, day, var, _vd, mode, _nav = (
+        m.groups())
+    utc = _tod(hh, mi, ss)
+    pos = _pos(ld, lm, ns, od, om, ew)
+    sog = None if sog_s is None else float(sog_s)
+    cog = None if cog_s is None else float(cog_s)
+    if ((utc is not None and utc < 0.0) or pos is _BAD_POS
+            or (sog is not None and sog > SOG_MAX_KN) or (cog is not None and cog > 360.0)
+            or (var is not None and float(var) > VARIATION_MAX_DEG)):
+        return None
+    if day is not None:
+        try:
+            field_date_days(day, "RMC date")
+        except NmeaError:
+            return None
+    if pos is None or status != "A":
+        fix = FixQuality.NONE
+    else:
+        fix = FixQuality.SINGLE if mode is None else FAA_MODE[mode]
+    lat, lon = (None, None) if pos is None else pos
+    out: list[Any] = [GpsFix(t, source, "RMC", talker, fix, lat, lon, utc_s=utc)]
+    if fix is not FixQuality.NONE and sog is not None:
+        out.append(GpsVelocity(t, source, "RMC", sog * KNOT_MPS,
+                               None if cog is None else wrap_2pi(math.radians(cog)), utc))
+    return out
+
+
+_VTG_RE = re.compile(rf"{RE_UDEC},T?,{RE_UDEC},M?,{RE_UDEC},N?,{RE_UDEC},K?(?:,({_FAA_RE})?)?")
+
+
+def _fast_vtg(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _VTG_RE.fullmatch(rest)
+    if m is None:
+        return None
+    cog_s, mag_s, kn_s, kmh_s, mode = m.groups()
+    if mode is not None and FAA_MODE[mode] is FixQuality.NONE:
+        return None
+    cog = None if cog_s is None else float(cog_s)
+    mag = None if mag_s is None else float(mag_s)
+    kn = None if kn_s is None else float(kn_s)
+    kmh = None if kmh_s is None else float(kmh_s)
+    if ((cog is not None and cog > 360.0) or (mag is not None and mag > 360.0)
+            or (kn is not None and kn > SOG_MAX_KN)
+            or (kmh is not None and kmh > SOG_MAX_KN * 1.852)):
+        return None
+    if kn is not None:
+        sog = kn * KNOT_MPS
+    elif kmh is not None:
+        sog = kmh * KMH_MPS
+    else:
+        return None
+    if cog is not None and cog == 360.0:
+        cog = 0.0
+    if cog is None and variation_deg is not None and mag is not None:
+        cog = (0.0 if mag == 360.0 else mag) + variation_deg
+    return [GpsVelocity(t, source, "VTG", sog, _course_rad(cog))]
+
+
+_GST_RE = re.compile(rf"{RE_TIME}" + rf",{RE_UDEC}" * 7)
+
+
+def _fast_gst(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _GST_RE.fullmatch(rest)
+    if m is None:
+        return None
+    hh, mi, ss, rms_s, a, b, o, la, lo, al = m.groups()
+    utc = _tod(hh, mi, ss)
+    if utc is not None and utc < 0.0:
+        return None
+    rms = None if rms_s is None else float(rms_s)
+    s_lat = None if la is None else float(la)
+    s_lon = None if lo is None else float(lo)
+    s_alt = None if al is None else float(al)
+    if s_lat is None and s_lon is None and s_alt is None:
+        return None
+    if ((rms is not None and rms > RMS_MAX_M) or (o is not None and float(o) > 360.0)
+            or any(x is not None and float(x) > SIGMA_MAX_M for x in (a, b, la, lo, al))):
+        return None
+    return [GpsErrorStats(t, source, s_lat, s_lon, s_alt, rms, utc)]
+
+
+_ZDA_RE = re.compile(rf"{RE_TIME},(\d\d),(\d\d),(\d{{4}})(?:,(-?\d\d?)?,(\d\d?)?)?")
+
+
+def _fast_zda(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _ZDA_RE.fullmatch(rest)
+    if m is None:
+        return None
+    hh, mi, ss, dd, mo, yyyy, zh, zm = m.groups()
+    sod = _tod(hh, mi, ss)
+    if (sod is None or sod < 0.0 or (zh is not None and not -13 <= int(zh) <= 13)
+            or (zm is not None and int(zm) > 59)):
+        return None
+    try:
+        days = days_since_epoch(int(yyyy), int(mo), int(dd), "ZDA date")
+    except NmeaError:
+        return None
+    return [GpsTime(t, source, days * 86400.0 + sod)]
+
+
+GPS_FAST: dict[str, FastHandler] = {
+    "GGA": _fast_gga,
+    "RMC": _fast_rmc,
+    "VTG": _fast_vtg,
+    "GST": _fast_gst,
+    "ZDA": _fast_zda,
+    "HDT": fast_hdt,
+    "THS": fast_ths,
+}
+
 GPS_HANDLERS: dict[str, Handler] = {
     "GGA": decode_gga,
     "RMC": decode_rmc,
@@ -345,4 +540,4 @@ def parse_gps(line: str, t: float, source: str = "gps",
     ``variation_deg`` (east positive) is only used for a VTG that carries a
     magnetic but no true track.  Raises ``NmeaError`` for anything rejected.
     """
-    return dispatch(line, GPS_HANDLERS, t, source, variation_deg)
+    return dispatch(line, GPS_HANDLERS, t, source, variation_deg, GPS_FAST)

@@ -42,14 +42,18 @@ from __future__ import annotations
 
 import math
 import re
+import struct
 from collections.abc import Callable, Mapping
 from datetime import date
+from functools import lru_cache, reduce
+from operator import xor
 from typing import Any
 
 #: the two characters that start a sentence
 START_CHARS = b"$!"
 #: printable ASCII, the only bytes allowed inside a sentence
 _PRINTABLE = bytes(range(0x20, 0x7F))
+_PRINTABLE_CRLF = _PRINTABLE + b"\r\n"
 _START_RE = re.compile(rb"[$!]")
 #: what ends (CR/LF) or restarts ($/!) a frame in progress
 _STOP_RE = re.compile(rb"[\r\n$!]")
@@ -57,6 +61,16 @@ _HEX = frozenset("0123456789ABCDEFabcdef")
 #: characters of an address (talker + type, or a proprietary one): [A-Z0-9]
 _ADDRESS_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789")
 _EPOCH_ORDINAL = date(1970, 1, 1).toordinal()
+
+
+#: regular-expression pieces of the fast decoders' layouts (see FastHandler):
+#: a time ``hhmmss[.s]`` (3 groups: hh, mm, ss) or nothing
+RE_TIME = r"(?:(\d\d)(\d\d)(\d\d(?:\.\d+)?))?"
+#: a position (6 groups: lat degrees, minutes, N/S, lon degrees, minutes, E/W) or ",,,"
+RE_POS = r"(?:(\d{1,3})(\d\d\.\d+),([NS]),(\d{1,3})(\d\d\.\d+),([EW])|,,,)"
+#: an unsigned / signed decimal (1 group) or nothing
+RE_UDEC = r"(\d+(?:\.\d+)?)?"
+RE_SDEC = r"(-?\d+(?:\.\d+)?)?"
 
 
 class NmeaError(ValueError):
@@ -76,17 +90,24 @@ def sentence_type(line: str) -> str:
     return address if address.startswith("P") else address[2:]
 
 
+#: unpackers of n little-endian 64-bit words, by n
+_WORDS = [struct.Struct(f"<{n}Q") for n in range(64)]
+
+
 def _xor(data: bytes) -> int:
-    """XOR of all bytes of ``data``: the bytes as one integer, folded in halves
-    (a handful of big-integer operations instead of a loop per byte)."""
-    n = int.from_bytes(data, "little")
-    width = len(data)
-    while width > 1:
-        half = (width + 1) >> 1
-        bits = half << 3
-        n = (n & ((1 << bits) - 1)) ^ (n >> bits)
-        width = half
-    return n
+    """XOR of all bytes of ``data``: XOR of its 64-bit words (in C), then the
+    eight bytes of the result folded together, instead of a loop per byte."""
+    pad = -len(data) % 8
+    if pad:
+        data += b"\0" * pad
+    n = len(data) >> 3
+    if n >= len(_WORDS):
+        return reduce(xor, data, 0)
+    w = reduce(xor, _WORDS[n].unpack(data), 0)
+    w ^= w >> 32
+    w ^= w >> 16
+    w ^= w >> 8
+    return w & 0xFF
 
 
 def nmea_checksum(body: str) -> int:
@@ -145,6 +166,16 @@ class NmeaFramer:
 
     def feed(self, data: bytes) -> list[str]:
         """Add ``data`` to the stream; return the sentences it completed."""
+        if (not self._partial and isinstance(data, bytes) and data[:1] in (b"$", b"!")
+                and data[-2:] == b"\r\n"):
+            # the common case, whole clean lines: checked on the whole chunk at once
+            lines = data[:-2].split(b"\r\n")
+            n = len(lines)
+            if (data.count(b"$") + data.count(b"!") == n and data.count(b"\n") == n
+                    and data.count(b"\r") == n and not data.translate(None, _PRINTABLE_CRLF)
+                    and all(x[:1] in (b"$", b"!") and len(x) <= self.max_len for x in lines)):
+                self.sentences += n
+                return [x.decode("ascii") for x in lines]
         out: list[str] = []
         buf = self._partial + data if self._partial else bytes(data)
         self._partial = b""
@@ -348,13 +379,14 @@ def field_angle_deg(s: str, name: str) -> float | None:
 def field_time_s(s: str) -> float | None:
     """``hhmmss[.ss]`` → seconds of the UTC day, or None if empty.
 
-    Hours 0–23, minutes 0–59, seconds below 61 (60.x is a leap second).
+    Hours 0–23, minutes 0–59, seconds below 61 (60.x is a leap second); a
+    decimal point must be followed by digits.
     """
     if not s:
         return None
     n = len(s)
     if n < 6 or not s[:6].isdigit() or not s.isascii() or (
-            n > 6 and (s[6] != "." or not (n == 7 or s[7:].isdigit()))):
+            n > 6 and (s[6] != "." or not s[7:].isdigit())):
         raise NmeaError("field", f"time {s[:16]!r}")
     hh, mm = int(s[:2]), int(s[2:4])
     ss = float(s[4:]) if n > 7 else float(s[4:6])
@@ -367,6 +399,7 @@ def field_time_s(s: str) -> float | None:
 YEAR_MIN, YEAR_MAX = 1980, 2099
 
 
+@lru_cache(maxsize=64)
 def field_date_days(s: str, name: str = "date") -> int | None:
     """``ddmmyy`` → days since 1970-01-01, or None if empty.
 
@@ -385,6 +418,7 @@ def field_date_days(s: str, name: str = "date") -> int | None:
         raise NmeaError("range", f"{name} {s!r} is not a date") from None
 
 
+@lru_cache(maxsize=64)
 def days_since_epoch(year: int, month: int, day: int, name: str = "date") -> int:
     """Days since 1970-01-01 of a calendar date; the year must be in
     [YEAR_MIN, YEAR_MAX] and the date must exist (``NmeaError("range")``)."""
@@ -398,10 +432,10 @@ def days_since_epoch(year: int, month: int, day: int, name: str = "date") -> int
 
 
 def _angle_dm(value: str, hemi: str, pos: str, neg: str, limit: float) -> float:
-    """``d..dmm.mmmm`` (1 to 3 degree digits, a decimal point) → degrees."""
+    """``d..dmm.mmmm`` (1 to 3 degree digits, a decimal point, decimals) → degrees."""
     dot = value.find(".")
     if not 3 <= dot <= 5 or not value[:dot].isdigit() or not value.isascii() or (
-            dot + 1 < len(value) and not value[dot + 1:].isdigit()):
+            not value[dot + 1:].isdigit()):
         raise NmeaError("field", f"coordinate {value[:16]!r}")
     minutes = float(value[dot - 2:])
     if minutes >= 60.0:
@@ -458,22 +492,41 @@ def wrap_2pi(angle_rad: float) -> float:
 
 #: a sentence decoder: (talker, fields, t, source, variation_deg) -> messages
 Handler = Callable[[str, list[str], float, str, float | None], list[Any]]
+#: a fast decoder of the common, valid layout of one sentence type: (talker,
+#: the text after the address and its comma, t, source, variation_deg) ->
+#: messages, or None to leave the sentence to the Handler (which is the
+#: reference: a fast decoder never accepts what its Handler refuses, and
+#: returns what the Handler returns)
+FastHandler = Callable[[str, str, float, str, float | None], list[Any] | None]
 
 
 def dispatch(line: str, handlers: Mapping[str, Handler], t: float, source: str,
-             variation_deg: float | None) -> list[Any]:
+             variation_deg: float | None,
+             fast: Mapping[str, FastHandler] | None = None) -> list[Any]:
     """Check ``line``, pick the handler for its sentence type and run it.
 
+    ``fast`` decoders, when given, are tried first (see :data:`FastHandler`).
     Whatever goes wrong comes out as ``NmeaError``: an unknown type is
     ``unsupported``; a stray ``ValueError``/``IndexError``/... from a handler
     (a field it failed to validate) becomes ``field`` rather than escaping.
     """
-    address, fields = split_checked(line)
-    handler = handlers.get(address[2:]) if len(address) == 5 and address[0] != "P" else None
+    body = _check(line)
+    comma = body.find(",")
+    address = body if comma < 0 else body[:comma]
+    if not _valid_address(address):
+        raise NmeaError("framing", f"bad address {address[:10]!r}")
+    stype = address[2:]
+    handler = handlers.get(stype) if len(address) == 5 and address[0] != "P" else None
     if handler is None:
         raise NmeaError("unsupported", address)
     try:
-        return handler(address[:2], fields, t, source, variation_deg)
+        if fast is not None and comma > 0:
+            quick = fast.get(stype)
+            if quick is not None:
+                out = quick(address[:2], body[comma + 1:], t, source, variation_deg)
+                if out is not None:
+                    return out
+        return handler(address[:2], body.split(",")[1:], t, source, variation_deg)
     except NmeaError:
         raise
     except (ValueError, TypeError, AttributeError, IndexError, ArithmeticError) as exc:
