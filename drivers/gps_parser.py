@@ -373,10 +373,21 @@ def _fast_gga(talker: str, rest: str, t: float, source: str,
     if m is None:
         return None
     hh, mi, ss, ld, lm, ns, od, om, ew, q, nsat_s, hdop_s, alt_s, sep_s, age_s, sta = m.groups()
-    utc = _tod(hh, mi, ss)
-    pos = _pos(ld, lm, ns, od, om, ew)
-    if (utc is not None and utc < 0.0) or pos is _BAD_POS:
-        return None
+    if hh is None:
+        utc = None
+    else:  # _tod and _pos inlined: this is the hottest sentence
+        h, mn, sec = int(hh), int(mi), float(ss)
+        if h > 23 or mn > 59 or sec >= 61.0:
+            return None
+        utc = h * 3600 + mn * 60 + sec
+    if ld is None:
+        pos = None
+    else:
+        a, b = float(lm), float(om)
+        lat, lon = int(ld) + a / 60.0, int(od) + b / 60.0
+        if a >= 60.0 or b >= 60.0 or lat > 90.0 or lon > 180.0:
+            return None
+        pos = ((-lat if ns == "S" else lat), (-lon if ew == "W" else lon))
     hdop = None if hdop_s is None else float(hdop_s)
     alt = None if alt_s is None else float(alt_s)
     age = None if age_s is None else float(age_s)

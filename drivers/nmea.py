@@ -57,7 +57,9 @@ _PRINTABLE_CRLF = _PRINTABLE + b"\r\n"
 _START_RE = re.compile(rb"[$!]")
 #: what ends (CR/LF) or restarts ($/!) a frame in progress
 _STOP_RE = re.compile(rb"[\r\n$!]")
-_HEX = frozenset("0123456789ABCDEFabcdef")
+_HEX = "0123456789ABCDEFabcdef"
+#: every two-hex-digit checksum field (either case) → its value
+_CHECKSUMS = {a + b: int(a + b, 16) for a in _HEX for b in _HEX}
 #: characters of an address (talker + type, or a proprietary one): [A-Z0-9]
 _ADDRESS_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789")
 _EPOCH_ORDINAL = date(1970, 1, 1).toordinal()
@@ -96,7 +98,13 @@ _WORDS = [struct.Struct(f"<{n}Q") for n in range(64)]
 
 def _xor(data: bytes) -> int:
     """XOR of all bytes of ``data``: XOR of its 64-bit words (in C), then the
-    eight bytes of the result folded together, instead of a loop per byte."""
+    eight bytes of the result folded together, instead of a loop per byte
+    (which is as fast only for short sentences)."""
+    if len(data) < 32:
+        cs = 0
+        for b in data:
+            cs ^= b
+        return cs
     pad = -len(data) % 8
     if pad:
         data += b"\0" * pad
@@ -233,15 +241,15 @@ def _check(line: str) -> str:
     if star < 0:
         raise NmeaError("no_checksum", line[:20])
     hh = line[star + 1:]
-    if len(hh) != 2 or hh[0] not in _HEX or hh[1] not in _HEX:
+    got = _CHECKSUMS.get(hh)
+    if got is None:
         raise NmeaError("checksum", f"malformed checksum field {hh[:4]!r}")
     body = line[1:star]
     try:
-        raw = body.encode("ascii")
+        want = _xor(body.encode("ascii"))
     except UnicodeEncodeError:
         raise NmeaError("framing", "non-ASCII character") from None
-    want = _xor(raw)
-    if int(hh, 16) != want:
+    if got != want:
         raise NmeaError("checksum", f"got {hh}, computed {want:02X}")
     return body
 

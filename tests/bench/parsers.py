@@ -2,27 +2,32 @@
 
     python tests/bench/parsers.py [--rounds 5] [--seeds 1 2] [--base REV] [--no-sim]
 
-"Old" is this tree with the five parser modules (``drivers/nmea.py``,
-``gps_parser.py``, ``compass_parser.py``, ``buoy_parser.py``,
-``thruster_protocol.py``) taken from ``--base``: by default the last commit
-whose ``drivers/nmea.py`` still imported pynmea2.  Everything else (the
-simulator, the EKF, the runtime) is the same code, so the ratio is the
-parsers' alone.  Old and new run in separate processes, alternately, round
-after round, on the same sentences and seeds; figures are medians over the
-rounds.
+"Old" is the five parser modules (``drivers/nmea.py``, ``gps_parser.py``,
+``compass_parser.py``, ``buoy_parser.py``, ``thruster_protocol.py``) of
+``--base``: by default the last commit whose ``drivers/nmea.py`` still
+imported pynmea2.  Everything else (messages, the simulator, the EKF, the
+runtime) is this tree's, so the ratios are the parsers' alone.  Per-type
+timings run old and new in this one process, in alternating batches, so
+that both see the same load; the simulations run in separate processes
+(this tree, and a copy of it with the old parser modules), alternately, on
+the same seeds.  Figures are medians.
 
 Measured:
 
 * per sentence type, sentences per second through the driver entry point
   (``parse_gps`` / ``parse_compass`` / ``parse_buoy`` / ``parse_pzths`` /
-  ``parse_pzthr``), best of several repeats per round; GLL and GNS were not
+  ``parse_pzthr``), CPU time per call; GLL and GNS were not
   read before (``unsupported``), so their old figure is the cost of the
   refusal;
 * framing (``NmeaFramer.feed`` on one simulated GPS epoch) and sentence
   formatting with its checksum (``format_sentence``, used by the simulated
   devices);
 * the rectangle scenario with the EKF (``runtime.navigation.estimator=ekf``):
-  simulated seconds per wall second (``speedup``), per seed.
+  simulated seconds per wall second (``speedup``, the simulator's figure)
+  and per CPU second of the simulating process (``speedup_cpu``, less
+  sensitive to other jobs on a shared machine), per seed.
+
+Per-type timings use CPU time (``time.process_time``) for the same reason.
 
 Progress goes to stderr; the last line on stdout is one JSON object.
 """
@@ -81,57 +86,86 @@ def log(msg: str) -> None:
 # ---------------------------------------------------------------- workers
 
 
-def worker_types(number: int, repeat: int) -> dict[str, Any]:
-    """Seconds per call of each type, and of framing and formatting (this tree)."""
-    import timeit
+def _paths(pkg: str) -> dict[str, Any]:
+    """The driver entry points of parser package ``pkg`` (``drivers`` or ``old_drivers``)."""
+    import importlib
 
-    from drivers.buoy_parser import parse_buoy
-    from drivers.compass_parser import parse_compass
-    from drivers.gps_parser import parse_gps
-    from drivers.nmea import NmeaError, NmeaFramer, format_sentence
-    from drivers.thruster_protocol import parse_pzthr, parse_pzths
+    gps = importlib.import_module(f"{pkg}.gps_parser")
+    compass = importlib.import_module(f"{pkg}.compass_parser")
+    buoy = importlib.import_module(f"{pkg}.buoy_parser")
+    thr = importlib.import_module(f"{pkg}.thruster_protocol")
+    nmea = importlib.import_module(f"{pkg}.nmea")
+    return {"gps": lambda x: gps.parse_gps(x, 0.0),
+            "compass": lambda x: compass.parse_compass(x, 0.0, variation_deg=-2.0),
+            "buoy": lambda x: buoy.parse_buoy(x, 0.0),
+            "thrusters": lambda x: thr.parse_pzths(x, 0.0),
+            "thruster_controller": thr.parse_pzthr,
+            "NmeaError": nmea.NmeaError, "NmeaFramer": nmea.NmeaFramer,
+            "format_sentence": nmea.format_sentence}
 
-    paths = {"gps": lambda x: parse_gps(x, 0.0),
-             "compass": lambda x: parse_compass(x, 0.0, variation_deg=-2.0),
-             "buoy": lambda x: parse_buoy(x, 0.0), "thrusters": lambda x: parse_pzths(x, 0.0),
-             "thruster_controller": parse_pzthr}
-    out: dict[str, Any] = {}
-    for stype, (body, path) in SENTENCES.items():
-        line = format_sentence(body).decode().rstrip("\r\n")
-        parse = paths[path]
-        try:
-            parse(line)
-            accepted = True
-        except NmeaError:
-            accepted = False
 
-        def call(parse: Any = parse, line: str = line) -> None:
-            try:  # noqa: SIM105 - contextlib.suppress would weigh on the timing
-                parse(line)
-            except NmeaError:
-                pass
+def measure_types(rounds: int, number: int) -> dict[str, dict[str, list[float]]]:
+    """CPU seconds per call of each type, old and new, in this process: batches
+    of ``number`` calls, old and new alternately, ``rounds`` times, so both see
+    the same load on a shared machine."""
+    import time
 
-        best = min(timeit.repeat(call, number=number, repeat=repeat)) / number
-        out[stype] = {"s": best, "accepted": accepted}
-    epoch = b"".join(format_sentence(SENTENCES[k][0]) for k in ("GGA", "RMC", "VTG"))
-    framer = NmeaFramer()
-    out["framing"] = {"s": min(timeit.repeat(lambda: framer.feed(epoch), number=number,
-                                             repeat=repeat)) / number, "bytes": len(epoch)}
-    body = SENTENCES["GGA"][0]
-    out["format"] = {"s": min(timeit.repeat(lambda: format_sentence(body), number=number,
-                                            repeat=repeat)) / number}
+    from drivers.nmea import format_sentence
+
+    clock = time.process_time
+    impl = {"old": _paths("old_drivers"), "new": _paths("drivers")}
+    calls: dict[str, dict[str, Any]] = {"old": {}, "new": {}}
+    for which, p in impl.items():
+        err = p["NmeaError"]
+        for stype, (body, path) in SENTENCES.items():
+            line = format_sentence(body).decode().rstrip("\r\n")
+            parse = p[path]
+
+            def call(parse: Any = parse, line: str = line, err: Any = err) -> bool:
+                try:
+                    parse(line)
+                    return True
+                except err:
+                    return False
+
+            calls[which][stype] = call
+        epoch = b"".join(format_sentence(SENTENCES[k][0]) for k in ("GGA", "RMC", "VTG"))
+        framer = p["NmeaFramer"]()
+        fmt = p["format_sentence"]
+        gga = SENTENCES["GGA"][0]
+        calls[which]["framing"] = lambda framer=framer, epoch=epoch: framer.feed(epoch)
+        calls[which]["format"] = lambda fmt=fmt, gga=gga: fmt(gga)
+    out: dict[str, dict[str, list[float]]] = {"old": {}, "new": {}}
+    for r in range(rounds):
+        for key in calls["new"]:
+            for which in (("old", "new") if (r + len(key)) % 2 == 0 else ("new", "old")):
+                f = calls[which][key]
+                f()  # warm
+                c0 = clock()
+                for _ in range(number):
+                    f()
+                out[which].setdefault(key, []).append((clock() - c0) / number)
+        if r % max(1, rounds // 5) == 0:
+            log(f"types round {r + 1}/{rounds}: GGA old {out['old']['GGA'][-1] * 1e6:.1f} µs, "
+                f"new {out['new']['GGA'][-1] * 1e6:.1f} µs")
+    out["accepted"] = {w: {k: float(calls[w][k]()) for k in SENTENCES} for w in calls}
     return out
 
 
 def worker_sim(seed: int, estimator: str) -> dict[str, Any]:
+    """The rectangle in this tree: wall-clock speedup (the simulator's own
+    figure) and simulated seconds per CPU second of this process."""
+    import time
+
     from zarco_tools.scenario import load_scenario
     from zarco_tools.simulation import run_scenario
 
     scn = load_scenario(Path("config") / "scenarios" / "rectangle.toml",
                         [f"runtime.navigation.estimator={estimator}"], seed)
+    c0 = time.process_time()
     rep = run_scenario(scn).report
-    return {"speedup": rep["speedup"], "wall_s": rep.get("wall_s"),
-            "duration_s": rep.get("duration_s")}
+    cpu = time.process_time() - c0
+    return {"speedup": rep["speedup"], "speedup_cpu": rep["sim_seconds"] / cpu}
 
 
 # ----------------------------------------------------------------- driver
@@ -159,6 +193,19 @@ def make_old_tree(base: str, where: Path) -> Path:
     return where
 
 
+def make_old_package(base: str, where: Path) -> None:
+    """``where/old_drivers``: the parser modules of ``base``, importing each other
+    as ``old_drivers.*`` (and everything else from this tree)."""
+    pkg = where / "old_drivers"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    for f in PARSER_FILES:
+        text = subprocess.check_output(["git", "-C", str(ROOT), "show", f"{base}:{f}"], text=True)
+        (where / "old_drivers" / Path(f).name).write_text(
+            text.replace("from drivers.", "from old_drivers.").replace(
+                "import drivers.", "import old_drivers."))
+
+
 def run_worker(root: Path, args: list[str]) -> dict[str, Any]:
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", *args, "--root", str(root)]
     res = subprocess.run(cmd, cwd=root, capture_output=True, text=True, check=False)
@@ -170,48 +217,40 @@ def run_worker(root: Path, args: list[str]) -> dict[str, Any]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rounds", type=int, default=5)
-    ap.add_argument("--number", type=int, default=3000, help="calls per timing")
-    ap.add_argument("--repeat", type=int, default=5, help="timings per round (best kept)")
+    ap.add_argument("--rounds", type=int, default=40, help="alternating batches per type")
+    ap.add_argument("--number", type=int, default=500, help="calls per batch")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--sim-rounds", type=int, default=2)
     ap.add_argument("--estimator", default="ekf")
     ap.add_argument("--base", default=None)
     ap.add_argument("--no-sim", action="store_true")
-    ap.add_argument("--worker", nargs="*", help=argparse.SUPPRESS)
+    ap.add_argument("--worker", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--root", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker is not None:
         sys.path.insert(0, args.root)
-        kind, *rest = args.worker
-        if kind == "types":
-            print(json.dumps(worker_types(int(rest[0]), int(rest[1]))))
-        else:
-            print(json.dumps(worker_sim(int(rest[0]), rest[1])))
+        print(json.dumps(worker_sim(int(args.worker[0]), args.worker[1])))
         return
 
     base = base_commit(args.base)
     log(f"old = parser modules of {base[:10]}, new = this tree")
     with tempfile.TemporaryDirectory(prefix="zarco-bench-parsers-") as tmp:
-        roots = {"old": make_old_tree(base, Path(tmp)), "new": ROOT}
-        per: dict[str, dict[str, list[float]]] = {"old": {}, "new": {}}
-        accepted: dict[str, dict[str, bool]] = {"old": {}, "new": {}}
-        for r in range(args.rounds):
-            for which in (("old", "new") if r % 2 == 0 else ("new", "old")):
-                res = run_worker(roots[which], ["types", str(args.number), str(args.repeat)])
-                for k, v in res.items():
-                    per[which].setdefault(k, []).append(v["s"])
-                    if "accepted" in v:
-                        accepted[which][k] = v["accepted"]
-            log(f"types round {r + 1}/{args.rounds}: GGA old "
-                f"{per['old']['GGA'][-1] * 1e6:.1f} µs, new {per['new']['GGA'][-1] * 1e6:.1f} µs")
+        old_root = Path(tmp) / "old"
+        old_root.mkdir()
+        roots = {"old": make_old_tree(base, old_root), "new": ROOT}
+        pkg_dir = Path(tmp) / "pkg"
+        pkg_dir.mkdir()
+        make_old_package(base, pkg_dir)
+        sys.path[:0] = [str(ROOT), str(pkg_dir)]
+        per = measure_types(args.rounds, args.number)
+        accepted = per.pop("accepted")
         med = {w: {k: statistics.median(v) for k, v in per[w].items()} for w in per}
         types = {}
         for k in SENTENCES:
             o, n = med["old"][k], med["new"][k]
             types[k] = {"old_per_s": round(1.0 / o), "new_per_s": round(1.0 / n),
                         "old_us": round(o * 1e6, 2), "new_us": round(n * 1e6, 2),
-                        "ratio": round(o / n, 2), "old_accepted": accepted["old"][k]}
+                        "ratio": round(o / n, 2), "old_accepted": bool(accepted["old"][k])}
         mix = {w: sum(med[w][k] * c for k, c in SIM_MIX.items()) for w in med}
         out: dict[str, Any] = {
             "bench": "parsers", "base": base[:12], "rounds": args.rounds,
@@ -227,18 +266,25 @@ def main() -> None:
                 + ("" if v["old_accepted"] else "  (old: refused)"))
         if not args.no_sim:
             sims: dict[str, list[float]] = {"old": [], "new": []}
+            cpus: dict[str, list[float]] = {"old": [], "new": []}
             for r in range(args.sim_rounds):
                 for seed in args.seeds:
                     for which in (("old", "new") if (r + seed) % 2 == 0 else ("new", "old")):
-                        res = run_worker(roots[which], ["sim", str(seed), args.estimator])
+                        res = run_worker(roots[which], [str(seed), args.estimator])
                         sims[which].append(res["speedup"])
+                        cpus[which].append(round(res["speedup_cpu"], 1))
                         log(f"rectangle seed {seed} ({args.estimator}) {which}: "
-                            f"{res['speedup']:.1f}× real time")
+                            f"{res['speedup']:.1f}× real time, "
+                            f"{res['speedup_cpu']:.1f} sim s per CPU s")
             so, sn = statistics.median(sims["old"]), statistics.median(sims["new"])
+            co, cn = statistics.median(cpus["old"]), statistics.median(cpus["new"])
             out["sim"] = {"scenario": "rectangle", "estimator": args.estimator,
                           "seeds": args.seeds, "old_speedup": round(so, 1),
                           "new_speedup": round(sn, 1), "ratio": round(sn / so, 3),
-                          "old_runs": sims["old"], "new_runs": sims["new"]}
+                          "old_speedup_cpu": round(co, 1), "new_speedup_cpu": round(cn, 1),
+                          "ratio_cpu": round(cn / co, 3),
+                          "old_runs": sims["old"], "new_runs": sims["new"],
+                          "old_runs_cpu": cpus["old"], "new_runs_cpu": cpus["new"]}
     print(json.dumps(out))
 
 
