@@ -25,7 +25,9 @@ Measured:
 * the rectangle scenario with the EKF (``runtime.navigation.estimator=ekf``):
   simulated seconds per wall second (``speedup``, the simulator's figure)
   and per CPU second of the simulating process (``speedup_cpu``, less
-  sensitive to other jobs on a shared machine), per seed.
+  sensitive to other jobs on a shared machine), per seed; and the share of
+  each run's time spent parsing, framing and formatting sentences (entry
+  points wrapped with timers), which says what the parsers can still give.
 
 Per-type timings use CPU time (``time.process_time``) for the same reason.
 
@@ -160,12 +162,58 @@ def worker_sim(seed: int, estimator: str) -> dict[str, Any]:
     from zarco_tools.scenario import load_scenario
     from zarco_tools.simulation import run_scenario
 
+    spent = instrument_byte_path()
     scn = load_scenario(Path("config") / "scenarios" / "rectangle.toml",
                         [f"runtime.navigation.estimator={estimator}"], seed)
     c0 = time.process_time()
     rep = run_scenario(scn).report
     cpu = time.process_time() - c0
-    return {"speedup": rep["speedup"], "speedup_cpu": rep["sim_seconds"] / cpu}
+    wall = rep["wall_seconds"]
+    return {"speedup": rep["speedup"], "speedup_cpu": rep["sim_seconds"] / cpu,
+            "share": {k: v / wall for k, v in spent.items()}}
+
+
+#: where the runtime and the simulator enter the byte path: (module, name, part)
+BYTE_PATH = [("zarco_runtime.runtime", "parse_gps", "parse"),
+             ("zarco_runtime.runtime", "parse_compass", "parse"),
+             ("zarco_runtime.runtime", "parse_buoy", "parse"),
+             ("drivers.thruster_driver", "parse_pzths", "parse"),
+             ("drivers.sim.backend", "parse_pzthr", "parse"),
+             ("drivers.sim.sensors", "format_sentence", "format"),
+             ("drivers.sim.acoustics", "encode_pzbae", "format"),
+             ("drivers.sim.acoustics", "encode_pzbst", "format"),
+             ("drivers.thruster_driver", "encode_pzthr", "format")]
+
+
+def instrument_byte_path() -> dict[str, float]:
+    """Wrap the byte path's entry points (parsing, framing, formatting) with
+    wall-clock accumulators; the shares of the run's wall time they took say
+    what the parsers weigh in the simulation (the wrappers cost ~0.3 µs a call,
+    the same in old and new)."""
+    import importlib
+    import time
+
+    spent = {"parse": 0.0, "framing": 0.0, "format": 0.0}
+    clock = time.perf_counter
+
+    def wrap(owner: Any, name: str, part: str) -> None:
+        f = getattr(owner, name, None)
+        if f is None:
+            return
+
+        def timed(*a: Any, **k: Any) -> Any:
+            c0 = clock()
+            try:
+                return f(*a, **k)
+            finally:
+                spent[part] += clock() - c0
+
+        setattr(owner, name, timed)
+
+    for mod, name, part in BYTE_PATH:
+        wrap(importlib.import_module(mod), name, part)
+    wrap(importlib.import_module("drivers.nmea").NmeaFramer, "feed", "framing")
+    return spent
 
 
 # ----------------------------------------------------------------- driver
@@ -267,12 +315,15 @@ def main() -> None:
         if not args.no_sim:
             sims: dict[str, list[float]] = {"old": [], "new": []}
             cpus: dict[str, list[float]] = {"old": [], "new": []}
+            shares: dict[str, dict[str, list[float]]] = {"old": {}, "new": {}}
             for r in range(args.sim_rounds):
                 for seed in args.seeds:
                     for which in (("old", "new") if (r + seed) % 2 == 0 else ("new", "old")):
                         res = run_worker(roots[which], [str(seed), args.estimator])
                         sims[which].append(res["speedup"])
                         cpus[which].append(round(res["speedup_cpu"], 1))
+                        for part, v in res["share"].items():
+                            shares[which].setdefault(part, []).append(v)
                         log(f"rectangle seed {seed} ({args.estimator}) {which}: "
                             f"{res['speedup']:.1f}× real time, "
                             f"{res['speedup_cpu']:.1f} sim s per CPU s")
@@ -283,6 +334,10 @@ def main() -> None:
                           "new_speedup": round(sn, 1), "ratio": round(sn / so, 3),
                           "old_speedup_cpu": round(co, 1), "new_speedup_cpu": round(cn, 1),
                           "ratio_cpu": round(cn / co, 3),
+                          # share of the run's wall time in each part of the byte path
+                          "byte_path_share": {w: {k: round(statistics.median(v), 4)
+                                                  for k, v in shares[w].items()}
+                                              for w in shares},
                           "old_runs": sims["old"], "new_runs": sims["new"],
                           "old_runs_cpu": cpus["old"], "new_runs_cpu": cpus["new"]}
     print(json.dumps(out))
