@@ -69,14 +69,20 @@ def test_pzbst_without_position_gives_nan() -> None:
         ("PZBAE,101502.123456,010626,X,2,18.5", "field"),       # unknown kind
         ("PZBAE,101502.123456,010626,II,2,18.5", "field"),
         ("PZBAE,101502.123456,010626,I,two,18.5", "field"),     # garbage beacon
-        ("PZBAE,101502.123456,010626,I,-1,18.5", "field"),
+        ("PZBAE,101502.123456,010626,I,-1,18.5", "range"),       # negative beacon
+        ("PZBAE,101502.123456,010626,I,10000,18.5", "range"),
+        ("PZBAE,101502.123456,010626,I,2,140.1", "range"),       # SNR no chain gives
+        ("PZBAE,101502.123456,010626,I,2,-60.5", "range"),
+        ("PZBAE,101502.123456,010626,I,2,99999", "range"),
         ("PZBAE,101502.123456,010626,I,2,1e3", "field"),        # no exponents
         ("PZBAE,101502.123456,010626,I,2,nan", "field"),
-        ("PZBAE,251502.123456,010626,I,2,18.5", "field"),       # hour 25
-        ("PZBAE,106002.123456,010626,I,2,18.5", "field"),       # minute 60
+        ("PZBAE,251502.123456,010626,I,2,18.5", "range"),       # hour 25
+        ("PZBAE,106002.123456,010626,I,2,18.5", "range"),       # minute 60
+        ("PZBAE,101561.000000,010626,I,2,18.5", "range"),       # second 61
         ("PZBAE,101502.1234567,010626,I,2,18.5", "field"),      # below a µs
         ("PZBAE,10150.123456,010626,I,2,18.5", "field"),
-        ("PZBAE,101502.123456,310226,I,2,18.5", "field"),       # 31 February
+        ("PZBAE,101502.123456,310226,I,2,18.5", "range"),       # 31 February
+        ("PZBAE,101502.123456,011326,I,2,18.5", "range"),       # month 13
         ("PZBAE,101502.123456,0106,I,2,18.5", "field"),
         ("PZBAE,101502.123456,010626,I,2", "field"),            # truncated
         ("PZBAE,101502.123456,010626,I,2,18.5,9", "field"),     # extra field
@@ -88,9 +94,13 @@ def test_pzbst_without_position_gives_nan() -> None:
         ("PZBST,100001.00,010626,4111.1,N,00842.3,W,12.5", "field"),  # truncated
         ("PZBST,100001.00,010626,4111.1,X,00842.3,W,12.5,0", "field"),
         ("PZBST,100001.00,010626,4111.1,N,,W,12.5,0", "field"),       # half a position
-        ("PZBST,100001.00,010626,4111.1,N,00842.3,W,-1.0,0", "field"),
+        ("PZBST,100001.00,010626,4111.1,N,00842.3,W,-1.0,0", "range"),
+        ("PZBST,100001.00,010626,4111.1,N,00842.3,W,100.5,0", "range"),
+        ("PZBST,100001.00,010626,9111.1,N,00842.3,W,12.5,0", "range"),   # latitude 91
+        ("PZBST,100001.00,010626,4111.1,N,18042.3,W,12.5,0", "range"),   # longitude 180.7
+        ("PZBST,100001.00,010626,4111.1,N,00842.3,W,12.5,10000", "range"),
         ("PZBST,100001.00,010626,4111.1,N,00842.3,W,12.5,ok", "field"),
-        ("PZBST,100001.00,010626,4111.1,N,00842.3,W,12.5,-2", "field"),
+        ("PZBST,100001.00,010626,4111.1,N,00842.3,W,12.5,-2", "range"),
         ("PZTHR,10.0,10.0", "unsupported"),
         ("GPGGA,1,2,3", "unsupported"),
     ],

@@ -70,9 +70,42 @@ def test_heading_wraps_into_0_2pi() -> None:
     assert h.heading_rad == pytest.approx(math.radians(358.0))
     (h,) = parse_compass(s("HCHDG,0.0,0.0,E,0.0,E"), 0.0)
     assert h.heading_rad == 0.0
-    for deg in ("0.0", "359.999", "360.0", "720.5", "-0.0000001"):
+    for deg in ("0.0", "359.999", "360.0"):
         (h,) = parse_compass(s(f"HEHDT,{deg},T"), 0.0)
         assert 0.0 <= h.heading_rad < 2 * math.pi, deg
+
+
+@pytest.mark.parametrize("body", [
+    "HEHDT,720.5,T", "HEHDT,400,T", "HEHDT,999999,T", "HEHDT,-0.0000001,T", "HEHDT,360.01,T",
+    "GPTHS,361.0,A", "APHDM,400.0,M", "HCHDG,400.0,,,2.0,W", "HCHDG,98.3,181.0,E,,",
+    "HCHDG,98.3,,,180.5,W", "HCHDG,98.3,-2.0,E,,", "TIROT,1000000,A", "TIROT,-3600.1,A",
+    "TIROT,99999,V", "YXXDR,A,90.5,D,PTCH", "YXXDR,A,-91,D,PITCH", "YXXDR,A,180.1,D,ROLL",
+    "YXXDR,A,0.5,D,PTCH,A,-200,D,ROLL",
+])
+def test_out_of_range_values_are_refused_not_wrapped(body: str) -> None:
+    """Checksum-valid values no instrument produces: refused, never wrapped or clamped."""
+    assert reason(s(body)) == "range"
+
+
+def test_values_at_the_limits_are_accepted() -> None:
+    (r,) = parse_compass(s("TIROT,-3600.0,A"), 0.0)
+    assert r.rate_rps == pytest.approx(-math.radians(60.0))
+    (a,) = parse_compass(s("YXXDR,A,-90.0,D,PTCH,A,180.0,D,ROLL"), 0.0)
+    assert a.pitch_rad == pytest.approx(-math.pi / 2) and a.roll_rad == pytest.approx(math.pi)
+    (h,) = parse_compass(s("HCHDG,10.0,180.0,W,180.0,E"), 0.0)
+    assert h.heading_rad == pytest.approx(math.radians(10.0))
+
+
+def test_trailing_fields_left_off_read_as_empty() -> None:
+    (h,) = parse_compass(s("HCHDG,98.3"), 0.0)  # no deviation, no variation fields
+    assert not h.true and h.heading_rad == pytest.approx(math.radians(98.3))
+    (h,) = parse_compass(s("HCHDG,98.3,,,2.0,W"), 0.0)
+    assert h.true and h.heading_rad == pytest.approx(math.radians(96.3))
+    (a,) = parse_compass(s("IIXDR,A,1.0,D,PTCH,A,2.0,D"), 0.0)  # last name left off
+    assert a.pitch_rad == pytest.approx(math.radians(1.0)) and a.roll_rad is None
+    assert reason(s("APHDM,218.6")) == "field"  # GPSD needs the reference letter
+    assert reason(s("TIROT,1.0")) == "field"
+    assert reason(s("IIXDR,A,1.0,D")) == "field"
 
 
 # ------------------------------------------------------------ HDM / HDT / THS
@@ -135,6 +168,7 @@ def test_xdr_nothing_of_interest() -> None:
 def test_xdr_refusals() -> None:
     assert reason(s("IIXDR,A,1.0,D")) == "field"  # not a quadruplet
     assert reason(s("IIXDR,A,1.0,R,PTCH")) == "field"  # pitch not in degrees
+    assert parse_compass(s("IIXDR,A,,R,PTCH"), 0.0) == []  # no value: nothing to read
     assert reason(s("IIXDR,A,abc,D,ROLL")) == "field"
 
 
@@ -147,7 +181,7 @@ def test_xdr_refusals() -> None:
     ("$HCHDG,98.3,0.0,E,12.6,W*5", "checksum"),
     ("$HCHDG,98.3,0.0,E,12.6,W*57x", "checksum"),
     ("HCHDG,98.3,0.0,E,12.6,W*57", "framing"),
-    (s("HCHDG,98.3,0.0,E"), "field"),  # truncated (checksum fine)
+    (s("HCHDG"), "field"),  # nothing after the address (checksum fine)
     (s("HCHDG,98.3,0.0,X,12.6,W"), "field"),
     (s("HCHDG,,0.0,E,12.6,W"), "empty"),
     (s("HCHDG,inf,0.0,E,12.6,W"), "field"),

@@ -104,6 +104,10 @@ def test_encode_pzths_refuses_non_finite() -> None:
     ("PZTHS,1.0,2.0,,4,5.0,6.0", "field"),
     ("PZTHS,1.0,2.0,nan,4,5.0,6.0", "field"),
     ("PZTHS,101.0,2.0,3,4,5.0,6.0", "range"),
+    ("PZTHS,1.0,2.0,100001,4,5.0,6.0", "range"),  # shaft speed no motor reaches
+    ("PZTHS,1.0,2.0,3,-100001,5.0,6.0", "range"),
+    ("PZTHS,1.0,2.0,3,4,-0.5,6.0", "range"),  # a current is a magnitude
+    ("PZTHS,1.0,2.0,3,4,5.0,1000.5", "range"),
     ("PZTHR,1.0,2.0", "unsupported"),
 ])
 def test_parse_pzths_refuses(body: str, want: str) -> None:

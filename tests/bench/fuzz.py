@@ -18,14 +18,25 @@ check, see the damage.
 
 Every mutated line (plus CR LF) goes through each driver path exactly as the
 drivers run it: :class:`~drivers.nmea.NmeaFramer` then ``parse_gps`` (GPS
-driver), ``parse_compass`` (compass driver), ``parse_pzths`` (thruster
-driver) and ``parse_pzthr`` (the thruster controller's side of the link).
-Counted:
+driver), ``parse_compass`` (compass driver), ``parse_buoy`` (buoy radio),
+``parse_pzths`` (thruster driver) and ``parse_pzthr`` (the thruster
+controller's side of the link).  Counted:
 
 * ``escaped_exceptions`` — anything but ``NmeaError`` out of a parser (must be 0);
 * ``bad_checksum_used`` — a sentence accepted although an independent check
   (last ``*``, exactly two hex digits, XOR of the bytes between the start
-  character and that ``*``) says its checksum is bad or missing (must be 0).
+  character and that ``*``) says its checksum is bad or missing (must be 0);
+* ``implausible_used`` — a message out of an accepted sentence whose values
+  an independent check (:func:`implausible`, on the bus messages) finds
+  outside their physical range (must be 0).
+
+Then the out-of-range set: every numeric field of one valid sentence of
+each type the drivers read (GGA, RMC, GLL, GNS, VTG, GST, ZDA, HDT, THS,
+HDG, HDM, ROT, XDR, ``$PZBAE``, ``$PZBST``, ``$PZTHR``, ``$PZTHS``) replaced
+by values just beyond, far beyond and one turn beyond its physical range
+(heading 360.5, 400, 720.5, 999999, -0.5; ROT 1e6 °/min; SOG 99999 kn;
+HDOP -5; year 9999; ...), checksum recomputed: ``out_of_range.accepted``
+counts the ones a driver path took (must be 0).
 
 Ends by printing one JSON line of its figures.
 """
@@ -34,6 +45,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import random
 import re
 import sys
@@ -47,10 +59,22 @@ ROOT = Path(__file__).resolve().parents[2]
 # the repository first (this file's own directory would make "hil" this script)
 sys.path[:] = [str(ROOT)] + [p for p in sys.path if p != str(ROOT)]
 
+from drivers.buoy_parser import parse_buoy  # noqa: E402
 from drivers.compass_parser import parse_compass  # noqa: E402
 from drivers.gps_parser import parse_gps  # noqa: E402
 from drivers.nmea import NmeaError, NmeaFramer  # noqa: E402
 from drivers.thruster_protocol import parse_pzthr, parse_pzths  # noqa: E402
+from zarco_core.auv_messages import AcousticEvent, BuoyStatus  # noqa: E402
+from zarco_core.messages import (  # noqa: E402
+    Attitude,
+    GpsErrorStats,
+    GpsFix,
+    GpsTime,
+    GpsVelocity,
+    Heading,
+    RateOfTurn,
+    ThrusterStatus,
+)
 
 LOGS = ROOT / "tests" / "data" / "gpsd-logs"
 
@@ -64,6 +88,11 @@ OWN_SENTENCES = [
     "$GNRMC,120000.00,A,4111.10000000,N,00842.30000000,W,1.944,12.34,010626,,,R*",
     "$GNGST,120000.00,0.015,0.015,0.015,0.0,0.015,0.015,0.030*",
     "$GNZDA,120000.00,01,06,2026,00,00*",
+    "$GNGLL,4111.10000000,N,00842.30000000,W,120000.00,A,R*",
+    "$GNGNS,120000.00,4111.10000000,N,00842.30000000,W,RR,14,0.7,0.000,0.000,1.0,0000,S*",
+    "$PZBAE,101502.123456,010626,I,2,18.5*", "$PZBAE,235960.000001,311226,R,9999,-3.5*",
+    "$PZBST,100001.00,010626,4111.100000,N,00842.300000,W,12.60,0*",
+    "$PZBST,100001.00,010626,,,,,11.95,3*",
 ]
 
 NASTY = ["", "nan", "NaN", "inf", "-inf", "1e9", "1E-3", "-", "+", ".", "..", "-0", "0x1F",
@@ -94,7 +123,7 @@ def load_corpus(seed: int = 0) -> dict[str, list[bytes]]:
     simulated compass's sentences; ``thrusters``: ``$PZTHR``/``$PZTHS`` with
     seeded values over their whole range.
     """
-    pools: dict[str, list[bytes]] = {"gps": [], "compass": [], "thrusters": []}
+    pools: dict[str, list[bytes]] = {"gps": [], "compass": [], "thrusters": [], "buoy": []}
     for log in sorted(LOGS.glob("*.log")):
         pool = pools["compass" if log.name == "pypilot.log" else "gps"]
         for raw in log.read_bytes().splitlines():
@@ -102,7 +131,7 @@ def load_corpus(seed: int = 0) -> dict[str, list[bytes]]:
                 pool.append(raw.rstrip(b"\r\n"))
     for s in OWN_SENTENCES:
         body = s[1:-1]
-        pool = "thrusters" if body.startswith("PZ") else (
+        pool = "buoy" if body.startswith("PZB") else "thrusters" if body.startswith("PZ") else (
             "gps" if body.startswith("GN") else "compass")
         pools[pool].append(_frame(body))
     rng = random.Random(seed)
@@ -115,11 +144,16 @@ def load_corpus(seed: int = 0) -> dict[str, list[bytes]]:
         pools["compass"].append(_frame(
             f"HCHDG,{rng.uniform(0, 360):.1f},,,{rng.uniform(0, 20):.1f},{rng.choice('EW')}"))
         pools["compass"].append(_frame(f"TIROT,{rng.uniform(-900, 900):.2f},A"))
+        pools["buoy"].append(_frame(
+            f"PZBAE,{rng.randrange(24):02d}{rng.randrange(60):02d}{rng.randrange(60):02d}."
+            f"{rng.randrange(10**6):06d},{rng.randrange(1, 29):02d}{rng.randrange(1, 13):02d}"
+            f"{rng.randrange(100):02d},{rng.choice('IR')},{rng.randrange(10)},"
+            f"{rng.uniform(-10, 60):.1f}"))
     return pools
 
 
 #: share of seed lines drawn from each pool
-POOL_WEIGHTS = {"gps": 0.5, "compass": 0.25, "thrusters": 0.25}
+POOL_WEIGHTS = {"gps": 0.45, "compass": 0.2, "thrusters": 0.2, "buoy": 0.15}
 
 
 def valid_checksum(frame: str) -> bool:
@@ -246,9 +280,180 @@ ParserFn = Callable[[str], Any]
 PATHS: dict[str, ParserFn] = {
     "gps": lambda line: parse_gps(line, 0.0),
     "compass": lambda line: parse_compass(line, 0.0, variation_deg=-2.0),
+    "buoy": lambda line: parse_buoy(line, 0.0),
     "thrusters": lambda line: parse_pzths(line, 0.0),
     "thruster_controller": parse_pzthr,
 }
+
+_TAU = 2.0 * math.pi
+_KN = 1852.0 / 3600.0
+
+
+def _bad(x: float | None, lo: float, hi: float) -> bool:
+    return x is not None and not (math.isfinite(x) and lo <= x <= hi)
+
+
+def implausible(m: Any) -> str | None:
+    """The first value of a bus message outside its physical range, or None.
+
+    Written from the physics, independently of the parsers' own limits:
+    angles in [0, 2π) (heading, course) or ±π/2 (pitch) / ±π (roll),
+    latitude ±90°, longitude ±180°, speed ≤ 100 kn, rate of turn ≤ 60 °/s,
+    HDOP and GST deviations ≥ 0, satellites 0..99, dates 1980..2100,
+    thruster commands ±100, currents ≥ 0, battery 0..100 V.
+    """
+    checks: list[tuple[str, float | None, float, float]] = []
+    if isinstance(m, GpsFix):
+        checks = [("lat", m.lat_deg, -90, 90), ("lon", m.lon_deg, -180, 180),
+                  ("hdop", m.hdop, 0, 100), ("sats", m.num_sats, 0, 99),
+                  ("alt", m.alt_m, -1000, 10000), ("age", m.age_s, 0, 1e4),
+                  ("utc", m.utc_s, 0, 86401)]
+    elif isinstance(m, GpsVelocity):
+        checks = [("sog", m.sog_mps, 0, 100 * _KN), ("cog", m.cog_rad, 0, _TAU - 1e-12)]
+    elif isinstance(m, GpsErrorStats):
+        checks = [("std_lat", m.std_lat_m, 0, 1e5), ("std_lon", m.std_lon_m, 0, 1e5),
+                  ("std_alt", m.std_alt_m, 0, 1e5), ("rms", m.rms_m, 0, 1e7)]
+    elif isinstance(m, GpsTime):
+        checks = [("epoch", m.utc_epoch_s, 315532800.0, 4102444800.0)]  # 1980..2100
+    elif isinstance(m, Heading):
+        checks = [("heading", m.heading_rad, 0, _TAU - 1e-12), ("raw", m.raw_deg, 0, 360),
+                  ("variation", m.variation_deg, -180, 180),
+                  ("deviation", m.deviation_deg, -180, 180)]
+    elif isinstance(m, RateOfTurn):
+        checks = [("rot", m.rate_rps, -math.radians(60), math.radians(60))]
+    elif isinstance(m, Attitude):
+        checks = [("pitch", m.pitch_rad, -math.pi / 2, math.pi / 2),
+                  ("roll", m.roll_rad, -math.pi, math.pi)]
+    elif isinstance(m, ThrusterStatus):
+        checks = [("u1", m.u1, -100, 100), ("u2", m.u2, -100, 100),
+                  ("amps1", m.amps1, 0, 1000), ("amps2", m.amps2, 0, 1000),
+                  ("rpm1", m.rpm1, -1e5, 1e5), ("rpm2", m.rpm2, -1e5, 1e5)]
+    elif isinstance(m, AcousticEvent):
+        checks = [("epoch", m.utc_epoch_s, 315532800.0, 4102444800.0),
+                  ("beacon", m.beacon, 0, 9999), ("snr", m.snr_db, -60, 140)]
+    elif isinstance(m, BuoyStatus):
+        checks = [("epoch", m.utc_epoch_s, 315532800.0, 4102444800.0),
+                  ("battery", m.battery_v, 0, 100), ("fault", m.fault_code, 0, 9999)]
+        if not (math.isnan(m.lat_deg) and math.isnan(m.lon_deg)):
+            checks += [("lat", m.lat_deg, -90, 90), ("lon", m.lon_deg, -180, 180)]
+    elif isinstance(m, tuple):  # parse_pzthr
+        checks = [("u1", m[0], -100, 100), ("u2", m[1], -100, 100)]
+    for name, x, lo, hi in checks:
+        if _bad(x, lo, hi):
+            return f"{type(m).__name__}.{name}={x!r}"
+    return None
+
+
+#: one valid sentence of each type the drivers read, by driver path
+VALID: dict[str, list[str]] = {
+    "gps": [
+        "GNGGA,120000.00,4807.038,N,01131.324,E,4,14,0.7,5.0,M,46.9,M,1.0,0000",
+        "GNRMC,120000.00,A,4807.038,N,01131.324,E,1.944,12.34,010626,2.0,E,R,S",
+        "GNGLL,4807.038,N,01131.324,E,120000.00,A,D",
+        "GNGNS,120000.00,4807.038,N,01131.324,E,DD,14,0.7,5.0,46.9,1.0,0000,S",
+        "GNVTG,12.34,T,10.0,M,1.944,N,3.600,K,R",
+        "GNGST,120000.00,0.015,0.02,0.01,12.0,0.015,0.015,0.030",
+        "GNZDA,120000.00,01,06,2026,00,00",
+        "GNHDT,123.4,T",
+        "GNTHS,123.4,A",
+    ],
+    "compass": [
+        "HCHDG,98.3,1.0,E,2.0,W", "HCHDM,218.6,M", "TIROT,-12.34,A",
+        "YXXDR,A,0.4,D,PTCH,A,-1.2,D,ROLL",
+    ],
+    "buoy": [
+        "PZBAE,101502.123456,010626,I,2,18.5",
+        "PZBST,100001.00,010626,4111.100000,N,00842.300000,W,12.60,0",
+    ],
+    "thrusters": ["PZTHS,12.5,-3.0,1500,-700,3.20,1.05"],
+    "thruster_controller": ["PZTHR,12.5,-3.0"],
+}
+
+_ANGLE = ["360.5", "400", "720.5", "999999", "-0.5", "-360"]
+_TIME = ["240000.00", "236000.00", "235961.00", "999999.99"]
+#: per sentence type, data field index → out-of-range values (checksum-valid,
+#: well-formed numbers or dates that no instrument can produce)
+OUT_OF_RANGE: dict[str, dict[int, list[str]]] = {
+    "GGA": {0: _TIME, 1: ["9000.001", "9959.999"], 3: ["18000.001", "35959.9"],
+            5: ["10", "99"], 6: ["100", "-1"], 7: ["-5", "-0.1", "100.0", "999.9"],
+            8: ["-1000.1", "99999", "1000000"], 10: ["-200.5", "250"], 12: ["-1", "10000"],
+            13: ["4096", "-1"]},
+    "RMC": {0: _TIME, 2: ["9000.001"], 4: ["18000.001"], 6: ["99999", "-0.1", "100.1"],
+            7: [*_ANGLE, "191194"], 8: ["320126", "290223", "001226", "011326"],
+            9: ["180.1", "-3"]},
+    "GLL": {0: ["9000.001"], 2: ["18000.001"], 4: _TIME},
+    "GNS": {0: _TIME, 1: ["9000.001"], 3: ["18000.001"], 6: ["100", "-1"],
+            7: ["-5", "100.0"], 8: ["99999", "-5000"], 9: ["250"], 10: ["-1", "10000"],
+            11: ["4096"]},
+    "VTG": {0: _ANGLE, 2: _ANGLE, 4: ["99999", "-1", "100.5"], 6: ["-1", "185.3", "99999"]},
+    "GST": {0: _TIME, 1: ["-1", "20000000"], 2: ["-0.1", "200000"], 3: ["-0.1"],
+            4: ["361", "-1"], 5: ["-0.01", "100001"], 6: ["-0.01"], 7: ["-0.01", "1e9"]},
+    "ZDA": {0: _TIME, 1: ["0", "32"], 2: ["0", "13"], 3: ["9999", "1979", "2100", "0"],
+            4: ["14", "-14"], 5: ["60", "-1"]},
+    "HDT": {0: _ANGLE},
+    "THS": {0: _ANGLE},
+    "HDG": {0: _ANGLE, 1: ["180.5", "-1", "999"], 3: ["180.5", "-2", "999"]},
+    "HDM": {0: _ANGLE},
+    "ROT": {0: ["1000000", "-1000000", "3600.1", "-99999"]},
+    "XDR": {1: ["90.1", "171", "-95", "999"], 5: ["180.1", "-200", "720"]},
+    "PZBAE": {0: ["251502.123456", "106002.123456", "101561.000000"],
+              1: ["320126", "290223", "011326", "000126"], 3: ["-1", "10000"],
+              4: ["140.1", "-60.1", "99999"]},
+    "PZBST": {0: ["240000.00", "236000.00"], 1: ["320126"], 2: ["9100.000000"],
+              4: ["18000.000001"], 6: ["-1", "100.01", "99999"], 7: ["-1", "10000"]},
+    "PZTHS": {0: ["100.1", "-150"], 1: ["100.05", "-999"], 2: ["100001", "-100001"],
+              3: ["-100001"], 4: ["-0.5", "1000.1"], 5: ["-3", "99999"]},
+    "PZTHR": {0: ["100.1", "-100.1", "99999"], 1: ["-100.05", "1000"]},
+}
+
+
+def out_of_range_set() -> list[tuple[str, str, int, str]]:
+    """(driver path, framed line, field index, value) for every out-of-range case."""
+    out = []
+    for path, bodies in VALID.items():
+        for body in bodies:
+            address, *fields = body.split(",")
+            stype = address if address.startswith("P") else address[2:]
+            for k, values in OUT_OF_RANGE[stype].items():
+                for v in values:
+                    f = list(fields)
+                    f[k] = v
+                    line = _frame(",".join([address, *f])).decode()
+                    out.append((path, line, k, v))
+    return out
+
+
+def run_out_of_range(paths: dict[str, ParserFn] | None = None) -> dict[str, Any]:
+    """Feed the out-of-range set through the driver paths; the valid sentences
+    first (all must be accepted, else the set proves nothing)."""
+    paths = PATHS if paths is None else paths
+    valid_refused = []
+    for path, bodies in VALID.items():
+        for body in bodies:
+            try:
+                paths[path](_frame(body).decode())
+            except NmeaError as exc:
+                valid_refused.append(f"{body}: {exc}")
+    accepted: list[str] = []
+    reasons: Counter[str] = Counter()
+    by_type: Counter[str] = Counter()
+    cases = out_of_range_set()
+    for path, line, _k, _v in cases:
+        stype = line[1:6] if line[1] == "P" else line[3:6]
+        try:
+            paths[path](line)
+        except NmeaError as exc:
+            reasons[exc.reason] += 1
+            continue
+        except Exception as exc:  # counted as an escape by the main run's standard
+            reasons[f"escaped:{type(exc).__name__}"] += 1
+            continue
+        accepted.append(line)
+        by_type[stype] += 1
+    return {"sentences": len(cases), "accepted": len(accepted),
+            "accepted_by_type": dict(sorted(by_type.items())),
+            "rejections": dict(sorted(reasons.items())),
+            "valid_refused": valid_refused, "examples": accepted[:8]}
 
 
 def run(lines: int, seed: int, progress: bool = False,
@@ -264,6 +469,7 @@ def run(lines: int, seed: int, progress: bool = False,
     framers = {name: NmeaFramer() for name in paths}
     escaped: list[dict[str, str]] = []
     bad_used: list[dict[str, str]] = []
+    implausible_used: list[dict[str, str]] = []
     reasons: Counter[str] = Counter()
     accepted: Counter[str] = Counter()
     frames = valid_frames = 0
@@ -277,7 +483,7 @@ def run(lines: int, seed: int, progress: bool = False,
                 ok = valid_checksum(frame)
                 valid_frames += ok
                 try:
-                    parse(frame)
+                    result = parse(frame)
                 except NmeaError as exc:
                     reasons[f"{name}:{exc.reason}"] += 1
                     continue
@@ -288,6 +494,12 @@ def run(lines: int, seed: int, progress: bool = False,
                 accepted[name] += 1
                 if not ok:
                     bad_used.append({"path": name, "line": repr(frame)})
+                msgs = result if isinstance(result, list) else [result]
+                for m in msgs:
+                    why = implausible(m)
+                    if why is not None:
+                        implausible_used.append({"path": name, "line": repr(frame),
+                                                 "value": why})
         if progress and i % 20000 == 0 and i:
             print(f"fuzz: {i} lines, {len(escaped)} escaped, {len(bad_used)} bad used",
                   file=sys.stderr)
@@ -303,11 +515,13 @@ def run(lines: int, seed: int, progress: bool = False,
         "accepted": dict(accepted),
         "escaped_exceptions": len(escaped),
         "bad_checksum_used": len(bad_used),
+        "implausible_used": len(implausible_used),
         "bytes_discarded": discarded,
         "rejections": dict(sorted(reasons.items())),
         "mutations": dict(sorted(mut.used.items())),
         "wall_s": round(wall, 2),
-        "examples": {"escaped": escaped[:5], "bad_checksum_used": bad_used[:5]},
+        "examples": {"escaped": escaped[:5], "bad_checksum_used": bad_used[:5],
+                     "implausible_used": implausible_used[:5]},
     }
 
 
@@ -320,13 +534,23 @@ def main() -> None:
     print(f"fuzz: {r['lines']} mutated lines, {r['frames_per_path']} frames per path "
           f"({r['frames_with_valid_checksum']} with a valid checksum), accepted "
           f"{r['accepted']}, {r['escaped_exceptions']} escaped exceptions, "
-          f"{r['bad_checksum_used']} bad-checksum sentences used, {r['wall_s']} s",
+          f"{r['bad_checksum_used']} bad-checksum sentences used, "
+          f"{r['implausible_used']} implausible values used, {r['wall_s']} s",
           file=sys.stderr)
     for kind, items in r["examples"].items():
         for x in items:
             print(f"  {kind}: {x}", file=sys.stderr)
-    print(json.dumps({k: v for k, v in r.items() if k != "examples"}))
-    sys.exit(1 if r["escaped_exceptions"] or r["bad_checksum_used"] else 0)
+    oor = run_out_of_range()
+    print(f"fuzz: out-of-range set: {oor['sentences']} checksum-valid sentences, "
+          f"{oor['accepted']} accepted {oor['accepted_by_type']}", file=sys.stderr)
+    for x in oor["examples"]:
+        print(f"  out_of_range accepted: {x}", file=sys.stderr)
+    r = {k: v for k, v in r.items() if k != "examples"}
+    r["out_of_range"] = {k: v for k, v in oor.items() if k != "examples"}
+    print(json.dumps(r))
+    bad = (r["escaped_exceptions"] or r["bad_checksum_used"] or r["implausible_used"]
+           or oor["accepted"] or oor["valid_refused"])
+    sys.exit(1 if bad else 0)
 
 
 if __name__ == "__main__":
