@@ -15,11 +15,13 @@ setup: $(BIN)/zarco
 sim: setup
 	$(BIN)/zarco sim config/scenarios/rectangle.toml --report out/rectangle.json --plot out/rectangle.png
 
-test: setup
+test: setup lint
 	$(BIN)/python -m pytest
 
 lint: setup
 	$(BIN)/ruff check .
+	$(BIN)/mypy
+	$(BIN)/lint-imports --no-cache
 
 bench: setup
 	$(BIN)/python tests/bench/lines.py

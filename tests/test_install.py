@@ -41,9 +41,9 @@ def test_the_install_tree(dest: Path) -> None:
     # runtime dependencies only: no plotting, no test tools
     site = next((dest / "opt/zarco/lib").glob("python3*/site-packages"))
     have = {p.name.lower() for p in site.iterdir()}
-    for pkg in ("numpy", "serial", "pynmea2", "zenoh", "pymavlink"):
+    for pkg in ("numpy", "serial", "zenoh", "pymavlink", "mcap"):
         assert any(h.startswith(pkg) for h in have), pkg
-    for extra in ("matplotlib", "pytest", "mypy", "ruff"):
+    for extra in ("matplotlib", "pytest", "mypy", "ruff", "hypothesis"):
         assert not any(h.startswith(extra) for h in have), extra
     passwd = (dest / "etc/passwd").read_text()
     assert re.search(r"^zarco:x:\d+:\d+:.*:/var/lib/zarco:", passwd, re.M)

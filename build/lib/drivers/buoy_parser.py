@@ -22,6 +22,11 @@ accepted and counted as the first second of the next minute.
 
 Status position: WGS-84 degrees, south and west negative; both coordinates
 empty (the buoy has no GPS fix) gives NaN for both.
+
+Plausible values only (``NmeaError("range")`` otherwise, never clamped):
+time of day 00:00:00–23:59:60.999999, a date that exists; beacon id
+0–``BEACON_ID_MAX``; SNR within ±``SNR_MAX_DB``; latitude ±90°, longitude
+±180°; battery 0–``BATTERY_MAX_V``; fault code 0–``FAULT_CODE_MAX``.
 """
 
 from __future__ import annotations
@@ -33,9 +38,9 @@ from typing import Any
 
 from drivers.nmea import (
     NmeaError,
-    field_float,
-    field_int,
+    field_int_range,
     field_latlon,
+    field_range,
     format_sentence,
     split_checked,
 )
@@ -48,6 +53,16 @@ _EPOCH = date(1970, 1, 1)
 _DAY_US = 86_400_000_000
 #: acoustic event kinds: interrogation, reply
 KINDS = ("I", "R")
+#: largest beacon id on the wire (the LBL network's ids are 0..9999)
+BEACON_ID_MAX = 9999
+#: magnitude of a detection SNR, dB (a detection below -60 dB or above
+#: +140 dB is not something a hydrophone chain produces)
+SNR_MAX_DB = 140.0
+SNR_MIN_DB = -60.0
+#: buoy battery voltage limit (V)
+BATTERY_MAX_V = 100.0
+#: largest buoy fault code
+FAULT_CODE_MAX = 9999
 
 
 def _time_us(s: str) -> int:
@@ -59,7 +74,7 @@ def _time_us(s: str) -> int:
         raise NmeaError("field", f"time {s[:16]!r}")
     hh, mm, ss = int(m[1]), int(m[2]), int(m[3])
     if hh > 23 or mm > 59 or ss > 60:
-        raise NmeaError("field", f"time {s!r} out of range")
+        raise NmeaError("range", f"time {s!r} out of range")
     frac = m[4] or ""
     us = int(frac.ljust(6, "0")) if frac else 0
     return ((hh * 60 + mm) * 60 + ss) * 1_000_000 + us
@@ -77,7 +92,7 @@ def _date_days(s: str) -> int:
     try:
         return (date(year, mo, dd) - _EPOCH).days
     except ValueError as exc:
-        raise NmeaError("field", f"date {s!r}") from exc
+        raise NmeaError("range", f"date {s!r} is not a date") from exc
 
 
 def _utc_epoch_s(time_s: str, date_s: str) -> float:
@@ -93,12 +108,10 @@ def _decode_pzbae(fields: list[str], t: float, source: str) -> AcousticEvent:
         raise NmeaError("empty", "PZBAE kind")
     if kind not in KINDS:
         raise NmeaError("field", f"PZBAE kind {kind[:4]!r} not I/R")
-    beacon = field_int(fields[3], "PZBAE beacon")
+    beacon = field_int_range(fields[3], "PZBAE beacon", 0, BEACON_ID_MAX)
     if beacon is None:
         raise NmeaError("empty", "PZBAE beacon")
-    if beacon < 0:
-        raise NmeaError("field", f"PZBAE beacon {beacon} negative")
-    snr = field_float(fields[4], "PZBAE snr")
+    snr = field_range(fields[4], "PZBAE snr", SNR_MIN_DB, SNR_MAX_DB)
     if snr is None:
         raise NmeaError("empty", "PZBAE snr")
     return AcousticEvent(t, source, utc, kind, beacon, snr)
@@ -108,24 +121,14 @@ def _decode_pzbst(fields: list[str], t: float, source: str) -> BuoyStatus:
     if len(fields) != 8:
         raise NmeaError("field", f"PZBST: {len(fields)} fields, need 8")
     utc = _utc_epoch_s(fields[0], fields[1])
-    lat_s, ns, lon_s, ew = fields[2:6]
-    if not (lat_s or ns or lon_s or ew):
-        lat, lon = math.nan, math.nan
-    else:
-        pos = field_latlon(lat_s, ns, lon_s, ew)
-        if pos is None:
-            raise NmeaError("field", "PZBST position partly empty")
-        lat, lon = pos
-    volts = field_float(fields[6], "PZBST battery")
+    pos = field_latlon(*fields[2:6])
+    lat, lon = pos if pos is not None else (math.nan, math.nan)
+    volts = field_range(fields[6], "PZBST battery", 0.0, BATTERY_MAX_V)
     if volts is None:
         raise NmeaError("empty", "PZBST battery")
-    if volts < 0.0:
-        raise NmeaError("field", f"PZBST battery {volts} V negative")
-    fault = field_int(fields[7], "PZBST status")
+    fault = field_int_range(fields[7], "PZBST status", 0, FAULT_CODE_MAX)
     if fault is None:
         raise NmeaError("empty", "PZBST status")
-    if fault < 0:
-        raise NmeaError("field", f"PZBST status {fault} negative")
     return BuoyStatus(t, source, utc, lat, lon, volts, fault)
 
 

@@ -12,21 +12,32 @@ positive bow up, roll positive starboard side down), radians.
 
 Heading algebra (NMEA 0183 HDG): magnetic = sensor + deviation,
 true = magnetic + variation.
+
+Plausible values only: headings in [0, 360] (360 reads as 0; anything else
+outside is ``NmeaError("range")``, never wrapped), deviation and variation
+0–180° with their E/W letter, rate of turn within ±``ROT_MAX_DPM``, pitch
+within ±90° and roll within ±180°; reference and status letters must be the
+ones the sentence defines.  Field counts follow GPSD (HDT 1, HDG 1, HDM 2,
+THS 2, ROT 2, XDR one quadruplet): trailing fields a sender leaves off read
+as empty; fewer than that is refused (``field``).
 """
 
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 from drivers.nmea import (
+    FastHandler,
     Handler,
     NmeaError,
     dispatch,
+    field_angle_deg,
     field_char,
-    field_float,
+    field_range,
     field_signed,
-    require_fields,
+    padded,
     wrap_2pi,
 )
 from zarco_core.messages import Attitude, Heading, RateOfTurn
@@ -36,11 +47,18 @@ PITCH_NAMES = frozenset({"PTCH", "PITCH"})
 ROLL_NAMES = frozenset({"ROLL"})
 #: THS mode indicators accepted as a usable heading (V = not valid is refused)
 THS_OK_MODES = "AEMS"
+#: largest rate of turn accepted, degrees per minute (60 °/s: beyond any hull
+#: this runtime steers, and beyond the range of marine rate-of-turn sensors)
+ROT_MAX_DPM = 3600.0
+#: magnitude of a compass deviation or a magnetic variation, degrees
+OFFSET_MAX_DEG = 180.0
+#: pitch and roll limits, degrees (Euler angles: pitch ±90, roll ±180)
+PITCH_MAX_DEG, ROLL_MAX_DEG = 90.0, 180.0
 
 
 def _heading_value(s: str) -> float:
-    """A heading field in degrees; empty → ``NmeaError("empty")``."""
-    deg = field_float(s, "heading")
+    """A heading field in degrees in [0, 360]; empty → ``NmeaError("empty")``."""
+    deg = field_angle_deg(s, "heading")
     if deg is None:
         raise NmeaError("empty", "no heading")
     return deg
@@ -66,20 +84,22 @@ def heading_from_magnetic(t: float, source: str, sentence: str, raw_deg: float,
 def decode_hdt(talker: str, fields: list[str], t: float, source: str,
                variation_deg: float | None = None) -> list[Any]:
     """``$--HDT,x.x,T`` true heading.  Empty heading → ``NmeaError("empty")``."""
-    require_fields(fields, 2, "HDT")
-    field_char(fields[1], "T", "HDT reference")
-    deg = _heading_value(fields[0])
+    f = padded(fields, 1, 2, "HDT")
+    field_char(f[1], "T", "HDT reference")
+    deg = _heading_value(f[0])
     return [Heading(t, source, "HDT", wrap_2pi(math.radians(deg)), True, deg)]
 
 
 def decode_ths(talker: str, fields: list[str], t: float, source: str,
                variation_deg: float | None = None) -> list[Any]:
     """``$--THS,x.x,m`` true heading with mode (A/E/M/S usable, V refused)."""
-    require_fields(fields, 2, "THS")
-    mode = field_char(fields[1], THS_OK_MODES + "V", "THS mode")
+    f = padded(fields, 2, 2, "THS")
+    mode = field_char(f[1], THS_OK_MODES + "V", "THS mode")
+    deg = _heading_value(f[0]) if f[0] else None
     if mode == "V" or mode is None:
-        raise NmeaError("invalid", f"THS mode {fields[1]!r}")
-    deg = _heading_value(fields[0])
+        raise NmeaError("invalid", f"THS mode {f[1]!r}")
+    if deg is None:
+        raise NmeaError("empty", "no heading")
     return [Heading(t, source, "THS", wrap_2pi(math.radians(deg)), True, deg)]
 
 
@@ -90,10 +110,10 @@ def decode_hdg(talker: str, fields: list[str], t: float, source: str,
     The sentence's own variation wins; without it the configured
     ``variation_deg`` is used; with neither the heading stays magnetic.
     """
-    require_fields(fields, 5, "HDG")
-    raw = _heading_value(fields[0])
-    dev = field_signed(fields[1], fields[2], "E", "W", "HDG deviation")
-    var = field_signed(fields[3], fields[4], "E", "W", "HDG variation")
+    f = padded(fields, 1, 5, "HDG")
+    dev = field_signed(f[1], f[2], "E", "W", "HDG deviation", OFFSET_MAX_DEG)
+    var = field_signed(f[3], f[4], "E", "W", "HDG variation", OFFSET_MAX_DEG)
+    raw = _heading_value(f[0])
     return [heading_from_magnetic(t, source, "HDG", raw, dev,
                                   var if var is not None else variation_deg)]
 
@@ -101,20 +121,20 @@ def decode_hdg(talker: str, fields: list[str], t: float, source: str,
 def decode_hdm(talker: str, fields: list[str], t: float, source: str,
                variation_deg: float | None = None) -> list[Any]:
     """``$--HDM,x.x,M`` magnetic heading; true if ``variation_deg`` is given."""
-    require_fields(fields, 2, "HDM")
-    field_char(fields[1], "M", "HDM reference")
-    raw = _heading_value(fields[0])
+    f = padded(fields, 2, 2, "HDM")
+    field_char(f[1], "M", "HDM reference")
+    raw = _heading_value(f[0])
     return [heading_from_magnetic(t, source, "HDM", raw, None, variation_deg)]
 
 
 def decode_rot(talker: str, fields: list[str], t: float, source: str,
                variation_deg: float | None = None) -> list[Any]:
     """``$--ROT,x.x,A`` rate of turn, deg/min on the wire → rad/s (+ = starboard)."""
-    require_fields(fields, 2, "ROT")
-    status = field_char(fields[1], "AV", "ROT status")
+    f = padded(fields, 2, 2, "ROT")
+    status = field_char(f[1], "AV", "ROT status")
+    deg_per_min = field_range(f[0], "rate of turn", -ROT_MAX_DPM, ROT_MAX_DPM)
     if status != "A":
-        raise NmeaError("invalid", f"ROT status {fields[1]!r}")
-    deg_per_min = field_float(fields[0], "rate of turn")
+        raise NmeaError("invalid", f"ROT status {f[1]!r}")
     if deg_per_min is None:
         raise NmeaError("empty", "no rate of turn")
     return [RateOfTurn(t, source, math.radians(deg_per_min) / 60.0)]
@@ -127,30 +147,124 @@ def decode_xdr(talker: str, fields: list[str], t: float, source: str,
     Angle transducers (type ``A``, units ``D``) named PTCH/PITCH and ROLL
     give an Attitude with the fields present; other transducers are
     ignored (``[]`` if nothing of interest).  A pitch/roll quadruplet in
-    units other than degrees, or a malformed value, is ``NmeaError("field")``.
+    units other than degrees, or a malformed value, is ``NmeaError("field")``;
+    pitch beyond ±90° or roll beyond ±180° is ``NmeaError("range")``.  A last
+    quadruplet cut short reads its missing trailing fields as empty (GPSD).
     """
-    if not fields or len(fields) % 4:
-        raise NmeaError("field", f"XDR: {len(fields)} fields, not quadruplets")
+    n = len(fields)
+    f = padded(fields, 4, n + (-n % 4), "XDR")
     pitch = roll = None
-    for i in range(0, len(fields), 4):
-        kind, value, units, name = fields[i:i + 4]
+    for i in range(0, len(f), 4):
+        kind, value, units, name = f[i:i + 4]
         name = name.upper()
         is_pitch = name in PITCH_NAMES
-        if kind != "A" or not (is_pitch or name in ROLL_NAMES):
+        if kind != "A" or not value or not (is_pitch or name in ROLL_NAMES):
             continue
         if units != "D":
             raise NmeaError("field", f"XDR {name} in units {units!r}, want D")
-        deg = field_float(value, f"XDR {name}")
-        if deg is None:
-            continue
         if is_pitch:
-            pitch = math.radians(deg)
+            deg = field_range(value, f"XDR {name}", -PITCH_MAX_DEG, PITCH_MAX_DEG)
+            if deg is not None:
+                pitch = math.radians(deg)
         else:
-            roll = math.radians(deg)
+            deg = field_range(value, f"XDR {name}", -ROLL_MAX_DEG, ROLL_MAX_DEG)
+            if deg is not None:
+                roll = math.radians(deg)
     if pitch is None and roll is None:
         return []
     return [Attitude(t, source, pitch, roll)]
 
+
+# ------------------------------------------------------------- fast paths
+#
+# The common layouts, one regular expression each; anything else returns
+# None and goes to the decoders above (the reference, with the precise error).
+
+_DEC = r"(\d+(?:\.\d+)?)"
+_OFFSET = rf"(?:{_DEC},([EW])|,)"
+_HDT_RE = re.compile(rf"{_DEC}(?:,T?)?")
+_THS_RE = re.compile(rf"{_DEC},([AEMS])")
+_HDM_RE = re.compile(rf"{_DEC},M")
+_HDG_RE = re.compile(rf"{_DEC},{_OFFSET},{_OFFSET}")
+_ROT_RE = re.compile(r"(-?\d+(?:\.\d+)?),A")
+
+
+def fast_hdt(talker: str, rest: str, t: float, source: str,
+             variation_deg: float | None) -> list[Any] | None:
+    m = _HDT_RE.fullmatch(rest)
+    if m is None:
+        return None
+    deg = float(m[1])
+    if deg > 360.0:
+        return None
+    if deg == 360.0:
+        deg = 0.0
+    return [Heading(t, source, "HDT", wrap_2pi(math.radians(deg)), True, deg)]
+
+
+def fast_ths(talker: str, rest: str, t: float, source: str,
+             variation_deg: float | None) -> list[Any] | None:
+    m = _THS_RE.fullmatch(rest)
+    if m is None:
+        return None
+    deg = float(m[1])
+    if deg > 360.0:
+        return None
+    if deg == 360.0:
+        deg = 0.0
+    return [Heading(t, source, "THS", wrap_2pi(math.radians(deg)), True, deg)]
+
+
+def _fast_hdm(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _HDM_RE.fullmatch(rest)
+    if m is None:
+        return None
+    deg = float(m[1])
+    if deg > 360.0:
+        return None
+    return [heading_from_magnetic(t, source, "HDM", 0.0 if deg == 360.0 else deg, None,
+                                  variation_deg)]
+
+
+def _fast_hdg(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _HDG_RE.fullmatch(rest)
+    if m is None:
+        return None
+    raw_s, dev_s, dev_d, var_s, var_d = m.groups()
+    raw = float(raw_s)
+    dev = None if dev_s is None else float(dev_s)
+    var = None if var_s is None else float(var_s)
+    if (raw > 360.0 or (dev is not None and dev > OFFSET_MAX_DEG)
+            or (var is not None and var > OFFSET_MAX_DEG)):
+        return None
+    if dev is not None and dev_d == "W":
+        dev = -dev
+    if var is not None and var_d == "W":
+        var = -var
+    return [heading_from_magnetic(t, source, "HDG", 0.0 if raw == 360.0 else raw, dev,
+                                  var if var is not None else variation_deg)]
+
+
+def _fast_rot(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Any] | None:
+    m = _ROT_RE.fullmatch(rest)
+    if m is None:
+        return None
+    dpm = float(m[1])
+    if abs(dpm) > ROT_MAX_DPM:
+        return None
+    return [RateOfTurn(t, source, math.radians(dpm) / 60.0)]
+
+
+COMPASS_FAST: dict[str, FastHandler] = {
+    "HDG": _fast_hdg,
+    "HDM": _fast_hdm,
+    "HDT": fast_hdt,
+    "THS": fast_ths,
+    "ROT": _fast_rot,
+}
 
 COMPASS_HANDLERS: dict[str, Handler] = {
     "HDG": decode_hdg,
@@ -171,4 +285,4 @@ def parse_compass(line: str, t: float, source: str = "compass",
     Attitude messages (``[]`` for an XDR without pitch/roll); raises
     ``NmeaError`` for anything rejected.
     """
-    return dispatch(line, COMPASS_HANDLERS, t, source, variation_deg)
+    return dispatch(line, COMPASS_HANDLERS, t, source, variation_deg, COMPASS_FAST)

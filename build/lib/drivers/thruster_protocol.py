@@ -6,21 +6,28 @@
     $PZTHS,U1,U2,RPM1,RPM2,A1,A2*hh    controller → runtime, status
 
 U1/U2 are the port (1) and starboard (2) commands, -100.0..100.0 with one
-decimal; RPM signed shaft speed (rev/min), A motor current (amperes).
-Framing and checksum go through :func:`drivers.nmea.split_checked`
-(pynmea2 does not know these sentences).  Numbers must be plain decimals:
-no exponent, ``nan`` or ``inf``.
+decimal; RPM signed shaft speed (rev/min), A motor current (amperes, a
+magnitude: never negative).  Framing and checksum go through
+:func:`drivers.nmea.split_checked`.  Numbers must be plain decimals: no
+exponent, ``nan`` or ``inf``.  Plausible values only: a command beyond ±100,
+a shaft speed beyond ±``RPM_MAX`` or a current outside [0, ``AMPS_MAX``] is
+``NmeaError("range")`` (never clamped); a field count other than the
+sentence's is ``NmeaError("field")``.
 """
 
 from __future__ import annotations
 
 import math
 
-from drivers.nmea import NmeaError, field_float, format_sentence, split_checked
+from drivers.nmea import NmeaError, field_float, field_range, format_sentence, split_checked
 from zarco_core.messages import ThrusterStatus
 
 #: command limit, percent of full thrust
 U_MAX = 100.0
+#: largest shaft speed a status may report, rev/min
+RPM_MAX = 100_000.0
+#: largest motor current a status may report, amperes
+AMPS_MAX = 1000.0
 
 
 def _clamp_command(u: float, name: str) -> float:
@@ -89,8 +96,9 @@ def parse_pzths(line: str, t: float) -> ThrusterStatus:
     f = _checked(line, "PZTHS", 6)
     u1, u2 = _command(f[0], "u1"), _command(f[1], "u2")
     rest = []
-    for s, name in zip(f[2:], ("rpm1", "rpm2", "amps1", "amps2"), strict=True):
-        v = field_float(s, name)
+    for s, name, lo, hi in ((f[2], "rpm1", -RPM_MAX, RPM_MAX), (f[3], "rpm2", -RPM_MAX, RPM_MAX),
+                            (f[4], "amps1", 0.0, AMPS_MAX), (f[5], "amps2", 0.0, AMPS_MAX)):
+        v = field_range(s, name, lo, hi)
         if v is None:
             raise NmeaError("field", f"{name} empty")
         rest.append(v)

@@ -9,7 +9,8 @@ skipped.
 
 The bytes take the drivers' own path: :class:`drivers.nmea.NmeaFramer`, then
 the parser of the device that speaks the sentence type —
-:func:`~drivers.gps_parser.parse_gps` (GGA, RMC, VTG, GST, ZDA, HDT, THS),
+:func:`~drivers.gps_parser.parse_gps` (GGA, RMC, GLL, GNS, VTG, GST, ZDA, HDT,
+THS),
 :func:`~drivers.compass_parser.parse_compass` (HDG, HDM, ROT, XDR),
 :func:`~drivers.thruster_protocol.parse_pzthr` / ``parse_pzths``.
 
@@ -17,9 +18,9 @@ Output keys (always ``kind`` = sentence type, ``talker``, ``n`` = input line
 number, ``device`` = the driver that would read it):
 
 ==========  ====================================================================
-GGA, RMC    ``lat``, ``lon`` (degrees, south/west negative, absent without a
-            position), ``fix`` (none / single / dgps / rtk_float / rtk_fixed),
-            ``time`` (UTC hh:mm:ss.ss), GGA ``alt``, ``sats``, ``hdop``,
+GGA, RMC,   ``lat``, ``lon`` (degrees, south/west negative, absent without a
+GLL, GNS    position), ``fix`` (none / single / dgps / rtk_float / rtk_fixed),
+            ``time`` (UTC hh:mm:ss.ss), GGA/GNS ``alt``, ``sats``, ``hdop``,
             ``age``; RMC with a usable fix also ``speed`` (m/s), ``track`` (deg)
 VTG         ``speed`` (m/s), ``track`` (deg true, absent if unknown)
 GST         ``std_lat``, ``std_lon``, ``std_alt``, ``rms`` (m)
