@@ -63,7 +63,8 @@ def follow_figures(log: TrackLog, auv_log: list[tuple[float, float, float, float
     turns = [tt for tt in auv.turn_times() if tt < end]
 
     def span(a: float, b: float) -> np.ndarray:
-        return d[(t >= a) & (t < b)]
+        out: np.ndarray = d[(t >= a) & (t < b)]
+        return out
 
     def at(s: float) -> float | None:
         i = int(np.searchsorted(t, s))
