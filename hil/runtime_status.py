@@ -9,12 +9,14 @@ and a last snapshot with ``"final": true`` and the control loop's figures
 when it exits.  Every line carries ``wall`` (``time.time()`` when written),
 which the simulator matches with its own events.
 
-An event's ``kind`` is the event's own (``mode``, ``failsafe``, ``ack``,
-``fault``, ``component``, ``mission``); a line is a snapshot when its kind is
-``status``.  A device's health change is a ``fault`` event whose source is
-the device and whose text is ``"gps: ok"`` or ``"gps: disconnected: <why>"``;
-a device's first state (``stale``, the port opened and nothing read yet) has
-no event and is taken from the first snapshot that lists the device.
+An event line's ``kind`` is the event's own (``mode``, ``failsafe``, ``ack``,
+``fault``, ``component``, ``mission``: the event's fields are written over the
+line's ``"kind": "event"``), or ``event`` with the event's kind under
+``event``; a line is a snapshot when its kind is ``status``.  A device's
+health change is a ``fault`` event whose source is the device and whose text
+is ``"gps: ok"`` or ``"gps: disconnected: <why>"``.  A device's first state
+(``stale``: the port opened, nothing read yet) has no event; it is taken from
+the first snapshot that lists the device.
 
 The runtime's stderr log is read only for errors (:class:`ErrorLog`).
 """
@@ -157,7 +159,10 @@ class RuntimeStatus:
                 self._transition(wall, dev, str(d.get("state", "")), str(d.get("reason", "")))
 
     def _event(self, wall: float, rec: dict[str, Any]) -> None:
-        ev = RuntimeEvent(wall, float(rec.get("t", 0.0)), str(rec.get("kind", "")),
+        kind = rec.get("kind", "")
+        if kind == "event":  # an event line that keeps its own kind apart
+            kind = rec.get("event", "")
+        ev = RuntimeEvent(wall, float(rec.get("t", 0.0)), str(kind),
                           str(rec.get("text", "")), str(rec.get("source", "")))
         self.events.append(ev)
         hc = health_change(ev)

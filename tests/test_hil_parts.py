@@ -219,6 +219,10 @@ def test_runtime_status_reads_what_zarco_run_writes(tmp_path: Path) -> None:
         fh.write('ld at 1.0, 2.0: x (was idle)", "source": "supervisor", "wall": 1.0}\nnot json\n')
     rst.poll()
     assert rst.modes[-1] == "hold" and rst.bad_lines == 1
+    # an event line may also keep its kind apart from the line's
+    rst.feed(['{"kind": "event", "event": "fault", "t": 9.5, "text": "gps: stale: no data", '
+              '"source": "gps", "wall": 2.0}'])
+    assert rst.state("gps") == "stale" and rst.events[-1].kind == "fault"
 
 
 def test_error_log_keeps_errors_and_their_tracebacks_only() -> None:
