@@ -41,6 +41,12 @@ def test_fault_schedule_is_validated_with_file_and_key(tmp_path: Path) -> None:
     bad.write_text(SCENARIO.read_text().replace('kind = "noise"', 'kind = "nosie"'))
     with pytest.raises(ConfigError, match=r"faults\[1\]\.kind: must be one of"):
         load_hil_scenario(bad)
+    buoy = tmp_path / "buoy.toml"  # a lines mission has no buoy feed to break
+    buoy.write_text(SCENARIO.read_text() + '\n[[faults]]\nkind = "silence"\ndevice = "buoy"\n')
+    with pytest.raises(ConfigError, match=r"faults\[4\]\.device: a buoy fault needs the buoy"):
+        load_hil_scenario(buoy)
+    with pytest.raises(ConfigError, match=r"runtime\.devices\.buoy\.enabled: the rig serves"):
+        load_hil_scenario(SCENARIO, ["runtime.devices.buoy.enabled=true"])
     with pytest.raises(ValueError, match="GPS fault"):
         fault(kind="fix", device="compass")
     with pytest.raises(ValueError, match="must last"):
@@ -150,14 +156,20 @@ def test_pty_port_unplug_and_replug_at_the_same_link(tmp_path: Path) -> None:
 # ---------------------------------------------------- config and the log
 
 
-def test_runtime_config_round_trips_through_toml(tmp_path: Path) -> None:
-    scn, _ = load_hil_scenario(SCENARIO)
-    links = {d: f"/run/zarco/dev/{d}" for d in ("gps", "compass", "thrusters")}
+@pytest.mark.parametrize("name, devices", [
+    ("line_faults.toml", ("gps", "compass", "thrusters")),
+    ("follow_short.toml", ("gps", "compass", "thrusters", "buoy")),
+])
+def test_runtime_config_round_trips_through_toml(tmp_path: Path, name: str,
+                                                 devices: tuple[str, ...]) -> None:
+    scn, _ = load_hil_scenario(SCENARIO.with_name(name))
+    links = {d: f"/run/zarco/dev/{d}" for d in devices}
     path = tmp_path / "zarco.toml"
     path.write_text(toml_dumps(runtime_config(scn, links)))
     cfg, mission = load_runtime_config(path)
     assert cfg.devices.gps.url == "/run/zarco/dev/gps"
     assert cfg.devices.thrusters.url == "/run/zarco/dev/thrusters"
+    assert cfg.devices.buoy.enabled == ("buoy" in devices)
     for d in links:  # everything else as in the scenario
         getattr(scn.runtime.devices, d).url = links[d]
     assert cfg == scn.runtime
