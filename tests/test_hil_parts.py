@@ -1,5 +1,5 @@
 """The HIL rig's parts, fast: fault schedule, pseudo-terminal ports, the runtime
-configuration it writes, and reading the runtime's log."""
+configuration it writes, and reading the runtime's status file and log."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ import serial
 from drivers.nmea import NmeaFramer, format_sentence
 from drivers.sim.faults import FaultPlan, FaultSpec
 from hil.ptys import PtyPort
-from hil.run import clean_legs, pooled_rms, runtime_config, toml_dumps
-from hil.runtime_log import RuntimeLog
+from hil.run import clean_legs, failsafe_entries, pooled_rms, runtime_config, toml_dumps
+from hil.runtime_status import ErrorLog, RuntimeStatus
 from hil.scenario import load_hil_scenario
 from zarco_core.config import ConfigError, build
 from zarco_tools.scenario import load_runtime_config
@@ -41,6 +41,12 @@ def test_fault_schedule_is_validated_with_file_and_key(tmp_path: Path) -> None:
     bad.write_text(SCENARIO.read_text().replace('kind = "noise"', 'kind = "nosie"'))
     with pytest.raises(ConfigError, match=r"faults\[1\]\.kind: must be one of"):
         load_hil_scenario(bad)
+    buoy = tmp_path / "buoy.toml"  # a lines mission has no buoy feed to break
+    buoy.write_text(SCENARIO.read_text() + '\n[[faults]]\nkind = "silence"\ndevice = "buoy"\n')
+    with pytest.raises(ConfigError, match=r"faults\[4\]\.device: a buoy fault needs the buoy"):
+        load_hil_scenario(buoy)
+    with pytest.raises(ConfigError, match=r"runtime\.devices\.buoy\.enabled: the rig serves"):
+        load_hil_scenario(SCENARIO, ["runtime.devices.buoy.enabled=true"])
     with pytest.raises(ValueError, match="GPS fault"):
         fault(kind="fix", device="compass")
     with pytest.raises(ValueError, match="must last"):
@@ -150,51 +156,105 @@ def test_pty_port_unplug_and_replug_at_the_same_link(tmp_path: Path) -> None:
 # ---------------------------------------------------- config and the log
 
 
-def test_runtime_config_round_trips_through_toml(tmp_path: Path) -> None:
-    scn, _ = load_hil_scenario(SCENARIO)
-    links = {d: f"/run/zarco/dev/{d}" for d in ("gps", "compass", "thrusters")}
+@pytest.mark.parametrize("name, devices", [
+    ("line_faults.toml", ("gps", "compass", "thrusters")),
+    ("follow_short.toml", ("gps", "compass", "thrusters", "buoy")),
+])
+def test_runtime_config_round_trips_through_toml(tmp_path: Path, name: str,
+                                                 devices: tuple[str, ...]) -> None:
+    scn, _ = load_hil_scenario(SCENARIO.with_name(name))
+    links = {d: f"/run/zarco/dev/{d}" for d in devices}
     path = tmp_path / "zarco.toml"
     path.write_text(toml_dumps(runtime_config(scn, links)))
     cfg, mission = load_runtime_config(path)
     assert cfg.devices.gps.url == "/run/zarco/dev/gps"
     assert cfg.devices.thrusters.url == "/run/zarco/dev/thrusters"
+    assert cfg.devices.buoy.enabled == ("buoy" in devices)
     for d in links:  # everything else as in the scenario
         getattr(scn.runtime.devices, d).url = links[d]
     assert cfg == scn.runtime
     assert mission == scn.mission
 
 
-def test_runtime_log_gives_health_transitions_drops_and_failsafes() -> None:
+def test_runtime_status_reads_what_zarco_run_writes(tmp_path: Path) -> None:
+    """The status file as ``zarco run --status`` writes it (its own writer, fed
+    through the bus): device health from the first snapshot and the health
+    events, modes, failsafes, refusals by reason, the final line."""
+    from zarco_core.messages import DeviceSummary, Event, MissionProgress, VesselStatus
+    from zarco_runtime.runtime import Runtime
+    from zarco_runtime.settings import RuntimeConfig
+    from zarco_runtime.vessel import StatusFile
+
+    rt = Runtime(RuntimeConfig())
+    path = tmp_path / "status.jsonl"
+    sf = StatusFile(str(path), rt)
+    rst = RuntimeStatus(path)
+
+    def snap(t: float, mode: str, state: str, reason: str, counters: dict[str, int],
+             along: float | None = None) -> VesselStatus:
+        gps = DeviceSummary(state, reason, None, counters.get("sentences_ok", 0), 0, counters)
+        return VesselStatus(t, 1e9 + t, mode, mode != "idle",
+                            MissionProgress("lines", "m", 0, 1, False, along, along),
+                            [], {"gps": gps}, {}, {})
+
+    pub = rt.bus.publish
+    pub(snap(0.0, "idle", "stale", "opened, waiting for data", {}))
+    assert rst.poll() == 1 and rst.ready(["gps"]) and not rst.ready(["gps", "buoy"])
+    pub(Event(0.2, "fault", "gps: ok", "gps"))
+    pub(Event(0.3, "mode", "mode lines: mission m from autostart (was idle)"))
+    pub(snap(1.0, "lines", "ok", "", {"sentences_ok": 9}, 0.4))
+    pub(Event(5.0, "fault", "gps: disconnected: port closed", "gps"))
+    pub(Event(5.1, "fault", "control: non-finite control output; zero thrust", "control"))
+    pub(Event(5.9, "failsafe", "position_lost: position estimate invalid; action idle "
+                               "(condition since 0.04 s)"))
+    pub(Event(5.9, "mode", "mode idle: failsafe position_lost: position estimate invalid "
+                           "(was lines)"))
+    pub(Event(6.1, "fault", "gps: stale: opened, waiting for data", "gps"))
+    pub(Event(6.2, "fault", "gps: ok", "gps"))
+    pub(Event(7.0, "failsafe", "position_lost cleared (position estimate invalid)"))
+    pub(snap(7.0, "idle", "ok", "", {"bytes": 900, "sentences_ok": 12, "checksum": 2,
+                                     "framing": 1, "reconnects": 1, "bytes_discarded": 40}))
+    sf.close()
+    with path.open("a") as fh:  # a line still being written is left for the next poll
+        fh.write('{"kind": "mode", "t": 9.0, "text": "mode ho')
+    rst.poll()
+    assert rst.final is not None and rst.final["final"] and rst.snapshots == 4
+    assert rst.states("gps") == ["stale", "ok", "disconnected", "stale", "ok"]
+    assert [tr.reason for tr in rst.transitions][2] == "port closed"
+    assert rst.modes == ["idle", "lines", "idle"]
+    assert rst.steering_since("lines") is not None and rst.steering_since("idle") is None
+    assert failsafe_entries(rst) == ["position_lost: position estimate invalid; action idle"]
+    assert len(rst.of_kind("failsafe")) == 2
+    dev = rst.devices()["gps"]
+    assert dev["dropped"] == {"checksum": 2, "framing": 1} and dev["counters"]["reconnects"] == 1
+    with path.open("a") as fh:
+        fh.write('ld at 1.0, 2.0: x (was idle)", "source": "supervisor", "wall": 1.0}\nnot json\n')
+    rst.poll()
+    assert rst.modes[-1] == "hold" and rst.bad_lines == 1
+    # an event line may also keep its kind apart from the line's
+    rst.feed(['{"kind": "event", "event": "fault", "t": 9.5, "text": "gps: stale: no data", '
+              '"source": "gps", "wall": 2.0}'])
+    assert rst.state("gps") == "stale" and rst.events[-1].kind == "fault"
+
+
+def test_error_log_keeps_errors_and_their_tracebacks_only() -> None:
     lines = [
         "2026-06-01 10:00:00,001 DEBUG asyncio: Using selector: EpollSelector",
-        "2026-06-01 10:00:00,100 INFO zarco.gps: gps: opened, waiting for data",
-        "2026-06-01 10:00:00,250 INFO zarco.gps: gps: ok",
         "2026-06-01 10:00:05,500 WARNING zarco.gps: gps: disconnected: device reports "
-        "readiness to read but returned no data (+2 similar suppressed)",
+        "readiness to read but returned no data",
         "2026-06-01 10:00:05,501 DEBUG serial_asyncio_fast: Failed to flush serial connection",
         "Traceback (most recent call last):",
         "termios.error: (5, 'Input/output error')",
         "2026-06-01 10:00:06,000 WARNING zarco.compass: compass: dropped '$HCHDG,1*': "
         "checksum: got 00, computed 1C",
-        "2026-06-01 10:00:06,300 WARNING zarco.control: control: failsafe: no valid position;"
-        " zero thrust",
-        "2026-06-01 10:00:06,400 INFO zarco.control: control: fault cleared (failsafe: x)",
-        "2026-06-01 10:00:06,900 WARNING zarco.gps: gps: stale: opened, waiting for data",
-        "2026-06-01 10:00:07,000 INFO zarco.gps: gps: ok",
     ]
-    log = RuntimeLog()
+    log = ErrorLog()
     for ln in lines:
         log.feed(ln + "\n")
-    assert log.states("gps") == ["stale", "ok", "disconnected", "stale", "ok"]
-    dis = log.transitions[2]
-    assert dis.suppressed == 2 and dis.reason.startswith("device reports")
-    assert dis.wall - log.transitions[1].wall == pytest.approx(5.25)
-    assert log.dropped == {"compass:checksum": 1}
-    assert [m for _, m in log.failsafes] == ["control: failsafe: no valid position; zero thrust"]
     assert log.errors == []  # a DEBUG record's traceback is not an error
     log.feed("2026-06-01 10:00:08,000 ERROR zarco.runtime: task crashed\n")
     log.feed("Traceback (most recent call last):\n")
-    assert len(log.errors) == 2
+    assert log.errors == ["zarco.runtime: task crashed", "Traceback (most recent call last):"]
 
 
 def test_legs_with_faults_are_left_out_of_the_clean_figures() -> None:

@@ -23,10 +23,16 @@ Figures (one JSON line at the end):
 * ``rss_start_mb`` / ``rss_end_mb``: its resident memory when the run starts and
   when it ends (``rss_max_mb`` too);
 * ``replug_max_s``: the worst time from a device's pty reappearing to the
-  runtime's next valid sentence from it (its ``ok`` health transition);
+  runtime's next valid sentence from it (the device's ``ok`` event in its
+  status file);
 * ``xtrack_rms_m``: cross-track RMS (true position, ≥ 15 m into each leg) over the
   legs that no fault came near (±5 s); ``xtrack_rms_sim_m``: the same legs of
-  ``zarco sim`` on the same scenario and seed.
+  ``zarco sim`` on the same scenario, seed and faults.
+
+A scenario that follows the AUV (``--scenario hil/scenarios/follow_short.toml``)
+gives instead the ASV–AUV distance figures of ``hil/follow.py``, through HIL
+(``distance_*_m``) and ``zarco sim`` on the same scenario, seed and faults
+(``sim_distance_*_m``).
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # the repository first (this file's own directory would make "hil" this script)
 sys.path[:] = [str(ROOT)] + [p for p in sys.path if p != str(ROOT)]
 
+from hil.follow import follow_figures  # noqa: E402
 from hil.run import pooled_rms, run_hil, summary  # noqa: E402
 from hil.scenario import load_hil_scenario  # noqa: E402
 from zarco_tools.simulation import run_scenario  # noqa: E402
@@ -68,15 +75,57 @@ def main() -> None:
     h = rep["hil"]
     print(summary(rep), file=sys.stderr)
 
-    # zarco sim: same scenario, same seed, no faults (the simulator cannot inject them)
+    # zarco sim: same scenario, same seed, same faults (applied in-process)
     sim_scn, _ = load_hil_scenario(args.scenario, args.set, args.seed)
     if args.duration:
         sim_scn.scenario.max_duration_s = min(sim_scn.scenario.max_duration_s, args.duration)
-    sim = run_scenario(sim_scn).report
+    if args.no_faults:
+        sim_scn.faults = []
+    sim_res = run_scenario(sim_scn)
+    sim = sim_res.report
+    t = h["timing"]
+    common: dict[str, Any] = {
+        "bench": "hil",
+        "scenario": rep["scenario"],
+        "seed": rep["seed"],
+        "stop": rep["stop"],
+        "wall_s": rep["wall_seconds"],
+        "faults_injected": len(faults),
+        "runtime_exit_code": h["runtime"]["exit_code"],
+        "runtime_exited_early": h["runtime"]["exited_before_the_end"],
+        "runtime_errors": len(h["runtime"]["errors"]),
+        "zero_thrust_on_exit": h["zero_thrust_on_exit"],
+        "jitter_p99_ms": t.get("runtime_jitter_p99_ms", t["jitter_p99_ms"]),
+        "jitter_p99_wire_ms": t["jitter_p99_ms"],
+        "latency_p99_ms": t["latency_p99_ms"],
+        "cpu_percent": h["cpu_percent"],
+        "rss_end_mb": h["rss_end_mb"],
+        "replug_max_s": h["replug_max_s"],
+        "modes": h["modes"],
+        "failsafes": rep["faults"],
+    }
+    if "xtrack_rms_m" not in rep:  # following the AUV
+        sim_f = follow_figures(sim_res.log, sim_res.extra["auv_log"],
+                               sim_res.extra["acoustics"].auv)
+        keys = ("distance_start_m", "distance_hover_end_m", "distance_leg_median_m",
+                "distance_leg_p95_m", "distance_leg_max_m", "distance_final_median_m",
+                "distance_max_m", "auv_travel_m", "asv_travel_m")
+        out = {**common, "follow_steering_s": h["follow_steering_s"],
+               **{k: rep[k] for k in keys}, **{f"sim_{k}": sim_f[k] for k in keys},
+               "turns": rep["turns"], "sim_turns": sim_f["turns"],
+               "device_states": {d: v.get("states") for d, v in rep["devices"].items()}}
+        out["distance_diff_max_m"] = max(
+            abs(rep[k] - sim_f[k]) for k in keys[1:7]
+            if rep[k] is not None and sim_f[k] is not None)
+        print(f"HIL vs zarco sim: distance max {rep['distance_max_m']} vs "
+              f"{sim_f['distance_max_m']} m, last 10 s median {rep['distance_final_median_m']}"
+              f" vs {sim_f['distance_final_median_m']} m", file=sys.stderr)
+        _write(args, res, rep)
+        print(json.dumps(out))
+        return
     clean = h["legs_without_faults"]
     rms_hil = h["xtrack_rms_without_faults_m"]
     rms_sim = pooled_rms(sim["legs"], clean)
-    t = h["timing"]
     reads = [r["read_after_s"] for r in h["replugs"]]
     out: dict[str, Any] = {
         "bench": "hil",
@@ -124,17 +173,25 @@ def main() -> None:
         "jitter_p99_le_2ms": out["jitter_p99_ms"] is not None and out["jitter_p99_ms"] <= 2.0,
         "cpu_le_10pct": h["cpu_percent"] is not None and h["cpu_percent"] <= 10.0,
     }
+    _write(args, res, rep)
+    print(f"HIL clean legs {clean}: RMS {out['xtrack_rms_m']} m vs zarco sim "
+          f"{out['xtrack_rms_sim_m']} m; checks {out['checks']}", file=sys.stderr)
+    print(json.dumps(out))
+
+
+def _write(args: argparse.Namespace, res: Any, rep: dict[str, Any]) -> None:
     if args.report:
         Path(args.report).parent.mkdir(parents=True, exist_ok=True)
         Path(args.report).write_text(json.dumps(rep, indent=2) + "\n")
     if args.plot:
-        from zarco_tools.plot import plot_lines
+        from zarco_tools.plot import plot_follow, plot_lines
 
         Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
-        plot_lines(args.plot, res.log, res.legs, f"{rep['scenario']} (HIL): seed {rep['seed']}")
-    print(f"HIL clean legs {clean}: RMS {out['xtrack_rms_m']} m vs zarco sim "
-          f"{out['xtrack_rms_sim_m']} m; checks {out['checks']}", file=sys.stderr)
-    print(json.dumps(out))
+        title = f"{rep['scenario']} (HIL): seed {rep['seed']}"
+        if "xtrack_rms_m" in rep:
+            plot_lines(args.plot, res.log, res.legs, title)
+        else:
+            plot_follow(args.plot, res.log, {"auv_log": res.auv_log, "auv_msgs": []}, title)
 
 
 if __name__ == "__main__":
