@@ -29,7 +29,7 @@ from drivers.transports import Ports, SystemPorts
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext, Factory, Runnable, Supervised
-from zarco_core.messages import HealthState, ThrusterCommand, VesselStatus
+from zarco_core.messages import ComponentState, HealthState, ThrusterCommand, VesselStatus
 from zarco_runtime.control.task import ControlTask
 from zarco_runtime.links.recorder.recorder import recorder_factory
 from zarco_runtime.navigation.task import Navigation
@@ -167,7 +167,8 @@ class Runtime:
     def _make_supervisor(self, ctx: ComponentContext) -> Runnable:
         follow = frozenset({"buoy", "tracking"})
         self.live.supervisor = Supervisor(self.cfg, self.bus, self.clock, ctx, self.boot,
-                                          self.caps, self.counters, CONTROL_PATH | follow)
+                                          self.caps, self.counters, CONTROL_PATH | follow,
+                                          self.component_states)
         # a supervisor restarted after a failure boots idle: no second autostart
         self.boot = Boot(self.boot.mission, autostart=False)
         return self.live.supervisor
@@ -184,6 +185,12 @@ class Runtime:
         for comp in self.components:
             out[f"{comp.name}_restarts"] = comp.restarts
         return out
+
+    def component_states(self) -> dict[str, ComponentState]:
+        """Each supervised component's state, restarts and failures."""
+        now = self.clock.now()
+        return {c.name: ComponentState(now, c.name, c.state, c.restarts, c.failures,
+                                       c.last_error) for c in self.components}
 
     def add_task(self, name: str, fn: Callable[[], object]) -> None:
         """Run an extra (unsupervised) task with the runtime (a link's server, say)."""

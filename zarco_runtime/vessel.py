@@ -37,8 +37,9 @@ STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGQUIT)
 
 class StatusFile:
     """``--status FILE``: the status snapshot (``"kind": "status"``, 1 Hz) and every
-    event (``"kind": "event"``) as JSON lines, and a ``"final": true`` line on
-    exit with the control loop's period-jitter histogram."""
+    event (``"kind": "event"``, its own kind under ``"event"``) as JSON lines, and
+    a ``"final": true`` line on exit with the control loop's period-jitter
+    histogram."""
 
     def __init__(self, path: str, runtime: Runtime) -> None:
         self.runtime = runtime
@@ -56,7 +57,8 @@ class StatusFile:
         self._write({"kind": "status", **dataclasses.asdict(st)})
 
     def _event(self, ev: Event) -> None:
-        self._write({"kind": "event", **dataclasses.asdict(ev)})
+        self._write({"kind": "event", "event": ev.kind, "t": ev.t, "text": ev.text,
+                     "source": ev.source})
 
     def close(self) -> None:
         ctl = self.runtime.live.control

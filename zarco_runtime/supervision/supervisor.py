@@ -121,13 +121,15 @@ class Supervisor:
     def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock, ctx: ComponentContext,
                  boot: Boot | None = None, caps: Capabilities | None = None,
                  counters: Callable[[], dict[str, int]] | None = None,
-                 control_path: frozenset[str] = frozenset()) -> None:
+                 control_path: frozenset[str] = frozenset(),
+                 components: Callable[[], dict[str, ComponentState]] | None = None) -> None:
         self.cfg = cfg
         self.bus = bus
         self.clock = clock
         self.boot = boot or Boot()
         self.caps = caps or Capabilities()
         self.counters_fn = counters
+        self.components_fn = components
         self.control_path = control_path
         o = cfg.origin
         self.frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
@@ -199,6 +201,16 @@ class Supervisor:
                     self._save_state()
             if g.complete:
                 self._mission_complete()
+        elif self.mode is Mode.FOLLOW and g.mode.startswith("follow:"):
+            phase = g.mode.split(":", 1)[1]
+            p.xtrack_m, p.along_m = g.xtrack_m, g.along_m
+            if phase != p.phase:
+                was, p.phase = p.phase, phase
+                text = {"follow": "AUV acquired; following",
+                        "hold": "AUV track lost; holding where it was lost",
+                        "wait": "waiting for the AUV track"}.get(phase, phase)
+                if was or phase != "wait":
+                    self.event("mission", text)
         elif self.mode is Mode.RETURN and g.mode == "return:station" and g.complete:
             self._set_mode(Mode.HOLD, "arrived home; holding", point=self.home,
                            keep_operator=True)
@@ -208,10 +220,10 @@ class Supervisor:
     def _on_health(self, m: DeviceHealth) -> None:
         old = self.health.devices.get(m.device)
         self.health.devices[m.device] = m
-        if old is not None and (old.state, old.reason) != (m.state, m.reason) \
+        if (old is None or (old.state, old.reason) != (m.state, m.reason)) \
                 and m.state is not HealthState.OK:
             self.event("fault", f"{m.device}: {m.state.value}: {m.reason}", m.device)
-        elif old is not None and old.state is not HealthState.OK and m.state is HealthState.OK:
+        elif (old is None or old.state is not HealthState.OK) and m.state is HealthState.OK:
             self.event("fault", f"{m.device}: ok", m.device)
 
     def _on_component(self, m: ComponentState) -> None:
@@ -622,11 +634,19 @@ class Supervisor:
         counters["commands_accepted"] = self.acks["accepted"]
         counters["commands_refused"] = self.acks["refused"]
         p = self.progress
-        prog = MissionProgress(p.kind, p.name, p.leg, p.legs, p.complete, p.xtrack_m, p.along_m)
+        prog = MissionProgress(p.kind, p.name, p.leg, p.legs, p.complete, p.xtrack_m, p.along_m,
+                               p.phase)
         return VesselStatus(now, self.clock.utc(now), self.mode.value, self.armed or
                             self.mode is not Mode.IDLE, prog,
                             sorted(self.failsafes.active), devs,
-                            dict(self.health.components), counters, self.directive.reason)
+                            self._components(), counters, self.directive.reason)
+
+    def _components(self) -> dict[str, ComponentState]:
+        """Every component's state: the runtime's account, with what the bus said."""
+        out = dict(self.health.components)
+        if self.components_fn is not None:
+            out.update(self.components_fn())
+        return out
 
     async def run(self) -> None:
         clock = self.clock

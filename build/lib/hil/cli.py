@@ -23,11 +23,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     h = sub.add_parser(
         "hil", help="hardware-in-the-loop: zarco run against a simulator behind pseudo-terminals",
         description="Run a scenario in real time: the simulator serves one pseudo-terminal "
-                    "per device (GPS, compass, thrusters) behind stable links in a run "
-                    "directory, `zarco run` reads them as serial ports in its own process, "
-                    "the loop closes through the thruster port; faults from the scenario's "
-                    "[[faults]] are injected at their times. Writes the report and plot of "
-                    "`zarco sim`.")
+                    "per device (GPS, compass, thrusters, and the LBL buoy's feed when the "
+                    "scenario follows the AUV) behind stable links in a run directory, "
+                    "`zarco run` reads them as serial ports in its own process and reports "
+                    "through its --status file, the loop closes through the thruster port; "
+                    "faults from the scenario's [[faults]] are injected at their times. "
+                    "Writes the report and plot of `zarco sim`.")
     h.add_argument("scenario", help="scenario TOML file (with optional [[faults]])")
     h.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key by dotted path (repeatable)")

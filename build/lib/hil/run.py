@@ -2,20 +2,25 @@
 simulator behind pseudo-terminals, in real time.
 
 1. the simulator (:mod:`hil.simulator`) creates one pseudo-terminal per device
-   behind stable links ``RUN/dev/{gps,compass,thrusters}``;
+   behind stable links ``RUN/dev/{gps,compass,thrusters}`` (and ``RUN/dev/buoy``
+   when the scenario follows the AUV);
 2. a runtime configuration pointing at those links, with the scenario's
    ``[runtime]`` and ``[mission]``, is written to ``RUN/zarco.toml``;
-3. ``zarco -v run --config RUN/zarco.toml`` starts as a separate process (its
-   log goes to ``RUN/runtime.log`` and is parsed for health transitions);
-4. once the runtime has opened every port, the world clock starts: devices
-   write at their rates, faults are injected at their times, the thruster
-   commands read from the thruster port drive the world;
+3. ``zarco run --config RUN/zarco.toml --status RUN/status.jsonl`` starts as a
+   separate process; the rig reads its status file as it grows (status
+   snapshots and events: :mod:`hil.runtime_status`) and keeps its stderr in
+   ``RUN/runtime.log`` (read for errors only);
+4. once the runtime has opened every port and its status lists every device,
+   the world clock starts: devices write at their rates, faults are injected
+   at their times, the thruster commands read from the thruster port drive
+   the world;
 5. at the end of the mission (or ``--duration``), the runtime gets SIGTERM
    (it must send zero thrust and exit 0), and the report and plot are written
    like ``zarco sim``'s, measured on the simulator's truth, plus a ``hil``
-   section: runtime exit, health transitions, replug times, timing (control
-   period jitter and GPS → command latency measured at the ports), runtime
-   CPU and memory.
+   section: runtime exit, health transitions, failsafes and mode changes
+   (from its status file), replug times, timing (control period jitter and
+   GPS → command latency measured at the ports, the control loop's own
+   jitter from the status file's final line), runtime CPU and memory.
 """
 
 from __future__ import annotations
@@ -39,7 +44,8 @@ from typing import Any
 import numpy as np
 
 from drivers.sim.faults import FaultSpec
-from hil.runtime_log import DEVICES, RuntimeLog
+from hil.follow import FINAL_S, LEG_SETTLE_S, follow_figures
+from hil.runtime_status import ErrorLog, RuntimeStatus
 from hil.simulator import HilSimulator
 from zarco_core.geodesy import LocalFrame
 from zarco_runtime.guidance.mission import Leg, build_legs
@@ -47,8 +53,10 @@ from zarco_tools.scenario import Scenario
 from zarco_tools.sim_report import TrackLog, line_figures
 from zarco_tools.simulation import command_step_rms
 
-#: how long the runtime may take to open its ports (s)
+#: how long the runtime may take to open its ports and report its devices (s)
 ATTACH_TIMEOUT_S = 30.0
+#: how often the runtime's status file is read while it runs (s)
+STATUS_POLL_S = 0.2
 #: how long the runtime may take to stop after SIGTERM (s)
 STOP_TIMEOUT_S = 10.0
 #: a leg counts as "with faults" if it overlaps a fault window widened by this (s)
@@ -109,18 +117,6 @@ def zarco_command() -> list[str]:
     """The ``zarco`` of this installation (the console script beside python)."""
     exe = Path(sys.executable).with_name("zarco")
     return [str(exe)] if exe.exists() else [sys.executable, "-m", "zarco_runtime.cli"]
-
-
-def run_supports(option: str) -> bool:
-    """Does ``zarco run`` take ``option`` (``--status``)?"""
-    from zarco_runtime.cli import build_parser
-
-    p = build_parser()
-    for action in p._subparsers._group_actions if p._subparsers else []:
-        run = getattr(action, "choices", {}).get("run")
-        if run is not None:
-            return any(option in a.option_strings for a in run._actions)
-    return False
 
 
 # ------------------------------------------------------------ process stats
@@ -239,16 +235,17 @@ def pooled_rms(legs: list[dict[str, Any]], which: list[int]) -> float | None:
     return math.sqrt(num / den) if den else None
 
 
-def replug_figures(sim: HilSimulator, rlog: RuntimeLog) -> list[dict[str, Any]]:
+def replug_figures(sim: HilSimulator, rst: RuntimeStatus) -> list[dict[str, Any]]:
     """For each replug: when the runtime opened the port again (seen at the
-    master) and when it read a valid sentence again (its ``ok`` log line)."""
+    master) and when it read a valid sentence again (the device's ``ok`` event
+    in its status file)."""
     out = []
     for ev in sim.events:
         if ev.what != "replugged":
             continue
         att = next((e for e in sim.events if e.device == ev.device and e.what == "attached"
                     and e.wall >= ev.wall), None)
-        ok = rlog.first(ev.device, "ok", ev.wall)
+        ok = rst.first(ev.device, "ok", ev.wall)
         out.append({
             "device": ev.device, "t": round(ev.t, 3),
             "opened_after_s": round(att.wall - ev.wall, 3) if att else None,
@@ -267,12 +264,16 @@ class HilResult:
     log: TrackLog
     report: dict[str, Any]
     run_dir: Path
+    #: the AUV's true track when following: (t, north m, east m, heading rad)
+    auv_log: list[tuple[float, float, float, float]] = dataclasses.field(default_factory=list)
 
 
 class _Status:
-    def __init__(self, sim: HilSimulator, rlog: RuntimeLog, limit: float,
+    """The running status line on stderr (sim time, leg or distance, device states)."""
+
+    def __init__(self, sim: HilSimulator, rst: RuntimeStatus, limit: float,
                  stream: Any = sys.stderr) -> None:
-        self.sim, self.rlog, self.limit, self.stream = sim, rlog, limit, stream
+        self.sim, self.rst, self.limit, self.stream = sim, rst, limit, stream
         self.tty = bool(getattr(stream, "isatty", lambda: False)())
         self.last = -1e9
 
@@ -281,12 +282,15 @@ class _Status:
         if now - self.last < (0.5 if self.tty else 10.0):
             return
         self.last = now
-        states = {d: "?" for d in DEVICES}
-        for tr in self.rlog.transitions:
-            states[tr.device] = tr.state
-        legs = len(self.sim.legs)
-        msg = (f"hil {t:7.1f}/{self.limit:.0f} s  leg {self.sim.leg + 1}/{legs}  "
-               + "  ".join(f"{d} {s}" for d, s in states.items()))
+        sim = self.sim
+        if sim.auv_log and sim.log.t:
+            _, ax, ay, _ = sim.auv_log[-1]
+            where = f"AUV at {math.hypot(sim.log.x[-1] - ax, sim.log.y[-1] - ay):5.1f} m"
+        else:
+            where = f"leg {sim.leg + 1}/{len(sim.legs)}"
+        mode = self.rst.modes[-1] if self.rst.modes else "?"
+        msg = (f"hil {t:7.1f}/{self.limit:.0f} s  {mode}  {where}  "
+               + "  ".join(f"{d} {self.rst.state(d)}" for d in sim.devices))
         self.stream.write(("\r" + msg.ljust(78)) if self.tty else (msg + "\n"))
         self.stream.flush()
 
@@ -296,21 +300,30 @@ class _Status:
             self.stream.flush()
 
 
+def failsafe_entries(rst: RuntimeStatus) -> list[str]:
+    """The failsafes the runtime entered (their event text without the timing)."""
+    out = set()
+    for ev in rst.of_kind("failsafe"):
+        if "; action " in ev.text:
+            out.add(ev.text.split(" (condition since", 1)[0])
+    return sorted(out)
+
+
 async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir: Path,
                limit_s: float, quiet: bool) -> dict[str, Any]:
     loop = asyncio.get_running_loop()
     sim = HilSimulator(scn, faults, legs, run_dir)
-    rlog = RuntimeLog()
+    status_file = run_dir / "status.jsonl"
+    status_file.unlink(missing_ok=True)  # the runtime appends: one run per file
+    rst = RuntimeStatus(status_file)
+    errlog = ErrorLog()
     sim.plug_all()
     watch = loop.create_task(sim.watch_ports(), name="hil.ports")
     cfg_path = run_dir / "zarco.toml"
     cfg_path.write_text("# written by zarco hil: the scenario's runtime and mission, with the "
                         "devices on pseudo-terminals\n"
                         + toml_dumps(runtime_config(scn, sim.links)))
-    cmd = [*zarco_command(), "-v", "run", "--config", str(cfg_path)]
-    status_file = run_dir / "status.jsonl"
-    if run_supports("--status"):
-        cmd += ["--status", str(status_file)]
+    cmd = [*zarco_command(), "run", "--config", str(cfg_path), "--status", str(status_file)]
     logf = (run_dir / "runtime.log").open("w")
     w_spawn = time.monotonic()
     proc = await asyncio.create_subprocess_exec(
@@ -322,23 +335,44 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
         async for raw in proc.stderr:
             text = raw.decode("utf-8", "replace")
             logf.write(text)
-            rlog.feed(text)
+            errlog.feed(text)
+
+    async def read_status() -> None:
+        while True:
+            rst.poll()
+            await asyncio.sleep(STATUS_POLL_S)
+
+    async def ready() -> bool:
+        """The runtime has every port open and its status lists every device."""
+        end = loop.time() + ATTACH_TIMEOUT_S
+        if not await sim.wait_attached(ATTACH_TIMEOUT_S):
+            return False
+        while not rst.ready(sim.devices):
+            if loop.time() > end:
+                return False
+            await asyncio.sleep(0.02)
+            rst.poll()
+        return True
 
     pumping = loop.create_task(pump(), name="hil.runtime-log")
+    reading = loop.create_task(read_status(), name="hil.runtime-status")
     exited = loop.create_task(proc.wait(), name="hil.runtime-exit")
     samples: list[tuple[float, float, float]] = []
     tasks: list[asyncio.Task[Any]] = []
-    status = None if quiet else _Status(sim, rlog, limit_s)
+    status = None if quiet else _Status(sim, rst, limit_s)
     try:
-        attach = loop.create_task(sim.wait_attached(ATTACH_TIMEOUT_S))
+        attach = loop.create_task(ready())
         await asyncio.wait({attach, exited}, return_when=asyncio.FIRST_COMPLETED)
         if not attach.done() or not attach.result():
             attach.cancel()
+            await asyncio.sleep(0.1)  # its last words
             tail = "\n".join((run_dir / "runtime.log").read_text().splitlines()[-5:]) \
                 if (run_dir / "runtime.log").exists() else ""
+            missing = [d for d, a in sim.attached.items() if not a]
             why = (f"exited with code {proc.returncode}" if exited.done()
-                   else f"did not open {[d for d, a in sim.attached.items() if not a]} "
-                        f"within {ATTACH_TIMEOUT_S:g} s")
+                   else f"did not open {missing} within {ATTACH_TIMEOUT_S:g} s" if missing
+                   else f"did not report its devices in {status_file.name} within "
+                        f"{ATTACH_TIMEOUT_S:g} s")
             raise HilError(f"runtime {why}\n{tail}")
         startup_s = time.monotonic() - w_spawn
         wall0 = time.time()
@@ -387,6 +421,7 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
         for t in tasks:
             t.cancel()
         watch.cancel()
+        reading.cancel()
         if proc.returncode is None:  # interrupted: stop it as on the boat, then for good
             with contextlib.suppress(ProcessLookupError):
                 proc.send_signal(signal.SIGTERM)
@@ -402,6 +437,7 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
         logf.close()
         if status is not None:
             status.close()
+    rst.poll()  # the rest, with the final line
 
     period = 1.0 / scn.runtime.control.rate_hz
     windows = [(f.at_s, f.end_s) for f in faults]
@@ -410,45 +446,50 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
     if len(samples) >= 2:
         (ta, ca, rss0), (tb, cb, rss1) = samples[0], samples[-1]
         cpu = round(100.0 * (cb - ca) / (tb - ta), 2) if tb > ta else None
-    replugs = replug_figures(sim, rlog)
+    replugs = replug_figures(sim, rst)
     reads = [r["read_after_s"] for r in replugs]
-    devices: dict[str, Any] = {d: {"states": rlog.states(d)} for d in DEVICES}
-    for key, n in rlog.dropped.items():
-        dev, reason = key.split(":", 1)
-        devices[dev].setdefault("dropped_log_lines", {})[reason] = n
-    if status_file.exists():  # the runtime's own counters (zarco run --status)
-        last_status: dict[str, Any] = {}
-        for ln in status_file.read_text().splitlines():
-            with contextlib.suppress(ValueError):
-                rec = json.loads(ln)
-                if rec.get("final"):
-                    last_status = rec
-        for d, rec in last_status.get("devices", {}).items():
-            devices.setdefault(d, {}).update(rec)
-        hist = last_status.get("control", {}).get("period_jitter_hist")
-        if hist:  # measured inside the runtime (control/task.py)
-            timing.update(hist_figures(hist))
+    summaries = rst.devices()
+    devices: dict[str, Any] = {d: {"states": rst.states(d), **summaries.get(d, {})}
+                               for d in (*sim.devices, *summaries)}
+    final = rst.final or {}
+    hist = (final.get("control") or {}).get("period_jitter_hist")
+    if hist:  # measured inside the runtime (its control loop)
+        timing.update(hist_figures(hist))
     return {
         "stop": stop,
         "sim_seconds": sim_seconds,
         "wall_seconds": t_end - t_start,
         "log": sim.log,
-        "faults": sorted({msg.split("control: ", 1)[-1] for _, msg in rlog.failsafes}),
+        "auv_log": sim.auv_log,
+        "auv": sim.acoustics.auv if sim.acoustics is not None else None,
+        "faults": failsafe_entries(rst),
         "devices": devices,
         "sim_thruster_controller": dict(sim.counters),
         "hil": {
             "runtime": {
                 "command": cmd, "pid": proc.pid, "exit_code": proc.returncode,
                 "exited_before_the_end": early_exit, "startup_s": round(startup_s, 3),
-                "log": str(run_dir / "runtime.log"), "errors": rlog.errors[:20],
+                "log": str(run_dir / "runtime.log"), "errors": errlog.errors[:20],
+                "status_file": str(status_file), "status_snapshots": rst.snapshots,
+                "status_final": rst.final is not None, "status_bad_lines": rst.bad_lines,
+                "counters": final.get("counters", {}),
+                "components": {c: {"state": v.get("state"), "restarts": v.get("restarts"),
+                                   "failures": v.get("failures")}
+                               for c, v in (final.get("components") or {}).items()},
             },
             "zero_thrust_on_exit": bool(after) and after[-1][1:] == (0.0, 0.0),
             "last_command": list(last) if last else None,
             "links": sim.links,
             "injected": [f.label for f in faults],
             "events": [e.as_dict() for e in sim.events],
-            "health": [tr.as_dict(wall0) for tr in rlog.transitions],
-            "failsafes": [{"t": round(w - wall0, 3), "message": m} for w, m in rlog.failsafes],
+            "modes": rst.modes,
+            "mission": final.get("mission"),
+            "follow_steering_s": round(w - wall0, 3)
+            if (w := rst.steering_since("follow")) is not None else None,
+            "health": [tr.as_dict(wall0) for tr in rst.transitions],
+            "failsafes": [{"t": round(e.wall - wall0, 3), "message": e.text}
+                          for e in rst.of_kind("failsafe")],
+            "runtime_events": [e.as_dict(wall0) for e in rst.events],
             "replugs": replugs,
             "replug_max_s": max((r for r in reads if r is not None), default=None)
             if all(r is not None for r in reads) else None,
@@ -478,11 +519,16 @@ def run_hil(scn: Scenario, faults: list[FaultSpec], run_dir: str | Path | None =
     w0 = time.perf_counter()
     raw = asyncio.run(_run(scn, faults, legs, rd, limit, quiet))
     log: TrackLog = raw.pop("log")
+    auv_log = raw.pop("auv_log")
+    auv = raw.pop("auv")
     hil = raw.pop("hil")
-    figures = line_figures(log, legs)
-    clean = clean_legs(log, faults)
-    hil["legs_without_faults"] = clean
-    hil["xtrack_rms_without_faults_m"] = pooled_rms(figures["legs"], clean)
+    if auv is not None:  # following the AUV: distances on the truth
+        figures = follow_figures(log, auv_log, auv)
+    else:
+        figures = line_figures(log, legs)
+        clean = clean_legs(log, faults)
+        hil["legs_without_faults"] = clean
+        hil["xtrack_rms_without_faults_m"] = pooled_rms(figures["legs"], clean)
     hil["wall_total_s"] = round(time.perf_counter() - w0, 3)
     sat = sum(1 for u1, u2 in zip(log.u1, log.u2, strict=True)
               if max(abs(u1), abs(u2)) >= 99.95)
@@ -504,7 +550,33 @@ def run_hil(scn: Scenario, faults: list[FaultSpec], run_dir: str | Path | None =
         "sim_thruster_controller": raw["sim_thruster_controller"],
         "hil": hil,
     }
-    return HilResult(scn, legs, log, report, rd)
+    return HilResult(scn, legs, log, report, rd, auv_log)
+
+
+def follow_summary(report: dict[str, Any]) -> str:
+    """The headline figures of a follow run (distances on the truth)."""
+
+    def m(v: Any) -> str:
+        return "-" if v is None else f"{v:.2f} m"
+
+    lines = [
+        f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
+        f"ran {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall",
+        f"ASV–AUV distance (truth): at the start {m(report['distance_start_m'])}, when the "
+        f"AUV starts moving ({report['auv_moves_s']:g} s) {m(report['distance_hover_end_m'])}",
+        f"  first leg (from {report['auv_moves_s'] + LEG_SETTLE_S:g} s): median "
+        f"{m(report['distance_leg_median_m'])}  p95 {m(report['distance_leg_p95_m'])}  max "
+        f"{m(report['distance_leg_max_m'])}",
+    ]
+    for tr in report["turns"]:
+        lines.append(f"  after the turn at {tr['t_s']:.1f} s: max {m(tr['distance_max_m'])}, "
+                     f"last {FINAL_S:g} s median {m(tr['distance_final_median_m'])}")
+    lines.append(f"  last {FINAL_S:g} s: median {m(report['distance_final_median_m'])}; "
+                 f"max over the run {m(report['distance_max_m'])}; the AUV went "
+                 f"{report['auv_travel_m']:.1f} m, the ASV {report['asv_travel_m']:.1f} m")
+    if report.get("faults"):
+        lines.append("failsafes: " + "; ".join(report["faults"]))
+    return "\n".join(lines)
 
 
 def summary(report: dict[str, Any]) -> str:
@@ -517,8 +589,9 @@ def summary(report: dict[str, Any]) -> str:
     def f(v: Any, unit: str = "") -> str:
         return "-" if v is None else f"{v:.4g}{unit}"
 
+    head = sim_summary(report) if "xtrack_rms_m" in report else follow_summary(report)
     lines = [
-        sim_summary(report), "",
+        head, "",
         f"runtime: started in {rt['startup_s']:.2f} s, exit code {rt['exit_code']}"
         f"{' (EXITED BEFORE THE END)' if rt['exited_before_the_end'] else ''}, zero thrust "
         f"on exit: {'yes' if h['zero_thrust_on_exit'] else 'NO'}; CPU {f(h['cpu_percent'], ' %')}"
@@ -527,9 +600,11 @@ def summary(report: dict[str, Any]) -> str:
         f"(max {f(t['jitter_max_ms'], ' ms')}; inside the runtime: p99 "
         f"{f(t.get('runtime_jitter_p99_ms'), ' ms')}); GPS → command latency p50 "
         f"{f(t['latency_p50_ms'], ' ms')}, p99 {f(t['latency_p99_ms'], ' ms')}",
-        f"legs without faults {h['legs_without_faults']}: cross-track RMS "
-        f"{f(h['xtrack_rms_without_faults_m'], ' m')}",
+        f"modes: {' → '.join(h['modes'])}",
     ]
+    if "legs_without_faults" in h:
+        lines.append(f"legs without faults {h['legs_without_faults']}: cross-track RMS "
+                     f"{f(h['xtrack_rms_without_faults_m'], ' m')}")
     if h["injected"]:
         lines.append("injected: " + "; ".join(h["injected"]))
     for r in h["replugs"]:
@@ -556,12 +631,17 @@ def main_hil(args: Any) -> int:
         Path(args.report).parent.mkdir(parents=True, exist_ok=True)
         Path(args.report).write_text(json.dumps(res.report, indent=2) + "\n")
     if args.plot:
-        from zarco_tools.plot import plot_lines
+        from zarco_tools.plot import plot_follow, plot_lines
 
         Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
-        plot_lines(args.plot, res.log, res.legs,
-                   f"{scn.scenario.name} (HIL): seed {scn.scenario.seed}, "
-                   f"RMS {res.report['xtrack_rms_m']:.3f} m")
+        title = f"{scn.scenario.name} (HIL): seed {scn.scenario.seed}, "
+        if "xtrack_rms_m" not in res.report:
+            # the tracker's fixes and track are in the runtime's process: truth only
+            plot_follow(args.plot, res.log, {"auv_log": res.auv_log, "auv_msgs": []},
+                        title + f"distance max {res.report['distance_max_m']:.2f} m")
+        else:
+            plot_lines(args.plot, res.log, res.legs,
+                       title + f"RMS {res.report['xtrack_rms_m']:.3f} m")
     print(summary(res.report))
     print(f"\nrun directory: {res.run_dir}")
     if args.report:

@@ -11,11 +11,17 @@ other way: on the monotonic clock, in real time, through pseudo-terminals
 * the thruster controller (``RUN/dev/thrusters``) writes ``$PZTHS`` at 5 Hz and
   applies every valid ``$PZTHR`` read from the port as it arrives (the world is
   advanced to the arrival time first), which closes the loop;
+* when the scenario follows the AUV (``[mission] kind = "follow"``, ``[auv]``,
+  ``[lbl]``), the buoy (``RUN/dev/buoy``) writes the LBL listener's
+  ``$PZBAE`` / ``$PZBST`` sentences of :class:`drivers.sim.acoustics.AcousticWorld`
+  (the same acoustic world and seed as ``zarco sim``) at the first 20 Hz tick
+  after each report time;
 * the fault schedule (:class:`drivers.sim.faults.FaultPlan`) decides, write
   by write, what each device really sends, and unplugs / replugs ports;
 * the true track is recorded at ``scenario.record_hz``, with the active leg
   from a shadow copy of the runtime's line guidance run on the true position
-  (the runtime's own guidance state is in another process).
+  (the runtime's own guidance state is in another process), and the AUV's
+  true position when following.
 
 Times: ``t`` (s) is simulation time, the loop's monotonic time minus the
 start; events also carry the wall-clock time (``time.time()``), to be matched
@@ -36,6 +42,8 @@ from pathlib import Path
 from typing import Any
 
 from drivers.nmea import NmeaError, NmeaFramer
+from drivers.sim.acoustics import AcousticWorld
+from drivers.sim.auv import Auv
 from drivers.sim.backend import STATUS_RATE_HZ
 from drivers.sim.faults import FaultPlan, FaultSpec
 from drivers.sim.world import SimWorld
@@ -50,6 +58,10 @@ from zarco_tools.sim_report import TrackLog
 ATTACH_POLL_S = 0.005
 #: noise bursts are written in slices this long (s)
 NOISE_SLICE_S = 0.01
+#: the buoy feed is written at this rate (s⁻¹), as in zarco sim (drivers/sim/backend.py)
+BUOY_RATE_HZ = 20.0
+#: the acoustic world's seed is the scenario's plus this (as in zarco sim)
+ACOUSTIC_SEED_OFFSET = 1_000_003
 
 
 @dataclass(slots=True)
@@ -114,8 +126,14 @@ class Timing:
     gps_writes: list[float] = field(default_factory=list)
 
 
-#: the devices behind pseudo-terminals
+#: the devices behind pseudo-terminals (and the buoy when following the AUV)
 HIL_DEVICES = ("gps", "compass", "thrusters")
+BUOY = "buoy"
+
+
+def serves_buoy(scn: Scenario) -> bool:
+    """Does the rig serve a buoy feed for this scenario (it follows the AUV)?"""
+    return scn.runtime.devices.buoy.enabled and scn.auv is not None and scn.lbl is not None
 
 
 class HilSimulator:
@@ -134,12 +152,22 @@ class HilSimulator:
             if legs else None
         self.leg = 0
         self.complete = asyncio.Event()
+        self.acoustics: AcousticWorld | None = None
+        if serves_buoy(scn):
+            assert scn.auv is not None and scn.lbl is not None
+            w = scn.world
+            self.acoustics = AcousticWorld(scn.lbl, Auv(scn.auv), seed + ACOUSTIC_SEED_OFFSET,
+                                           self.world.utc_epoch_s(0.0),
+                                           (w.origin_lat_deg, w.origin_lon_deg))
+        self.devices = HIL_DEVICES + ((BUOY,) if self.acoustics is not None else ())
         self.dev_dir = Path(run_dir) / "dev"
-        self.ports = {d: PtyPort(d, self.dev_dir / d) for d in HIL_DEVICES}
+        self.ports = {d: PtyPort(d, self.dev_dir / d) for d in self.devices}
         self.out = {d: DeviceOut(p) for d, p in self.ports.items()}
         self.links = {d: str(p.link) for d, p in self.ports.items()}
-        self.attached = dict.fromkeys(HIL_DEVICES, False)
+        self.attached = dict.fromkeys(self.devices, False)
         self.log = TrackLog()
+        #: the AUV's true track when following: (t, north m, east m, heading rad)
+        self.auv_log: list[tuple[float, float, float, float]] = []
         self.events: list[Event] = []
         self.timing = Timing()
         self.counters: Counter[str] = Counter()  # the thruster controller's
@@ -269,6 +297,12 @@ class HilSimulator:
     def _status(self, t: float) -> None:
         self._emit("thrusters", t, self.world.thruster_status_bytes(t))
 
+    def _buoy(self, t: float) -> None:
+        assert self.acoustics is not None
+        data = b"".join(b for _t, b in self.acoustics.events_until(t))
+        if data:
+            self._emit(BUOY, t, data)
+
     def _record(self, t: float) -> None:
         if not self.recording:
             return
@@ -280,11 +314,14 @@ class HilSimulator:
                 self.complete.set()
         u1, u2 = self.last_cmd
         self.log.add(t, s.x_m, s.y_m, s.psi_rad, self.leg, u1, u2)
+        if self.acoustics is not None:
+            a = self.acoustics.auv_truth(t)
+            self.auv_log.append((t, a.x_m, a.y_m, a.psi_rad))
         if self.progress is not None:
             self.progress(t)
 
     def _noise(self, t: float, last: list[float]) -> None:
-        for d in HIL_DEVICES:
+        for d in self.devices:
             if self.ports[d].plugged:
                 junk = self.plan.noise(d, last[0], t)
                 if junk:
@@ -324,8 +361,10 @@ class HilSimulator:
             (w.gps.rate_hz, self._gps),
             (w.compass.rate_hz, self._compass),
             (STATUS_RATE_HZ, self._status),
-            (self.scn.scenario.record_hz, self._record),
         ]
+        if self.acoustics is not None:
+            devices.append((BUOY_RATE_HZ, self._buoy))
+        devices.append((self.scn.scenario.record_hz, self._record))
         if any(f.kind == "noise" for f in self.plan.faults):
             last = [0.0]
             devices.append((1.0 / NOISE_SLICE_S, lambda t: self._noise(t, last)))

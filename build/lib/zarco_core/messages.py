@@ -384,7 +384,9 @@ class DeviceSummary:
 @dataclass(slots=True)
 class MissionProgress:
     """Where the active (or last) mission stands: ``kind`` lines/follow, ``leg``
-    0-based of ``legs``, ``complete``; ``xtrack_m`` the cross-track error."""
+    0-based of ``legs``, ``complete``; ``xtrack_m`` the cross-track error;
+    ``phase`` of a follow mission: ``wait`` (no AUV track yet), ``follow``,
+    ``hold`` (track lost)."""
 
     kind: str = ""
     name: str = ""
@@ -393,6 +395,7 @@ class MissionProgress:
     complete: bool = False
     xtrack_m: float | None = None
     along_m: float | None = None
+    phase: str = ""
 
 
 @dataclass(slots=True)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import sys
 from typing import Any
 
@@ -107,10 +106,9 @@ def _tool_commands(argv: list[str] | None) -> list[Any]:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser(argv).parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.WARNING,
-        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
-    )
+    from zarco_runtime.logs import setup, under_journal
+
+    setup(args.verbose, service=args.command == "run" and under_journal())
     try:
         return int(args.func(args))
     except ConfigError as exc:
