@@ -1,14 +1,16 @@
-"""Navigation EKF: RTK GPS, compass, true heading and gyro → NavState (issue 5).
+"""Navigation EKF: RTK GPS, compass, true heading, gyro and the thruster commands → NavState.
 
 A drop-in replacement for :class:`~zarco_runtime.navigation.simple.SimpleNavigator`
 (same ``on_fix``, ``on_velocity``, ``on_heading``, ``on_rate``, ``has_gyro``,
-``state``), plus ``on_gst`` and :meth:`EkfNavigator.status`.
+``state``), plus ``on_gst``, ``on_command`` (the thruster commands, with the
+vessel model given by :meth:`EkfNavigator.set_vessel`) and
+:meth:`EkfNavigator.status`.
 
 Frames and units (DESIGN.md §3): local NED about the configured origin (x
 north, y east, metres), heading ψ clockwise from north (rad, wrapped to
 [−π, π]), body x forward / y starboard, yaw rate r positive clockwise (rad/s).
 
-State (12)
+State (14)
 ----------
 ======  ============  ======================================================
 index   symbol        meaning
@@ -21,6 +23,8 @@ index   symbol        meaning
 7       b_c           compass bias (rad): compass = ψ + b_c + noise
 8, 9    c_n, c_e      water current, NED (m/s)
 10, 11  b_n, b_e      offset of the GPS solution (m): fix = x + b + noise
+12      η             thrust/drag scale of the surge model (1: as modelled)
+13      ε             thruster mismatch: F1 = (1 + ε) f1, F2 = (1 − ε) f2
 ======  ============  ======================================================
 
 The ground velocity is ``R(ψ)·(u, v) + c`` (DESIGN.md §4 kinematics); NavState
@@ -28,85 +32,114 @@ reports it as (vn, ve), and as (u, v) rotated into the body frame (ground
 relative, as the first estimator did), with the covariance of (x, y, vn, ve, ψ)
 obtained through that Jacobian.
 
-Process model (the paper's vessel model, reduced to what the sensors can
-support): ψ' = r; r, b_g, b_c, the current and the surge speed u are random
-walks; the sway follows the hull's sway equation, v' = −a·u·r − v/τ_v + noise
-(a = m/(m − Y_v'), τ_v = (m − Y_v')/(−Y_v): 0.4 and 1 s for Zarco), so in a
-turn the boat slips by the right amount and lags by the right time, and on a
-straight leg v is a small Gauss–Markov process (gusts, chop).  This sway model
-is what ties the heading to the GPS velocity: it makes the compass bias, the
-gyro bias and the current observable.  The GPS offset b is a first-order
-Gauss–Markov process whose σ and τ depend on the fix type (RTK fixed:
-millimetres; single point: 1.5 m over minutes, DESIGN.md §4).
+Process model: the vessel model driven by the thrusters
+-------------------------------------------------------
+While thruster commands arrive (``ThrusterCommand`` on the bus, no older than
+``command_timeout_s``; ``thrust_model`` on, vessel model set) they are the
+prediction's input: each command U_i goes through the thruster's calibrated map
+f_i (the tables control allocates with) and the first-order thrust lag to a
+thrust F_i, and the vessel model of DESIGN.md §4 (the runtime's ``[vessel]``)
+gives the accelerations::
 
-(A first version kept the ground velocity in NED with a pseudo-measurement
-"sway ≈ −k·u·r"; it let the yaw wobble from gusts, which the real sway
-follows with a lag, leak into a spurious along-track current of 0.13 m/s and
-a 0.3° heading bias.  The body-frame sway state removed both.)
+    (m − X_u') u' = η·(F1 + F2) + X_u u + X_|u|u |u| u + m v r
+    (Iz − N_r') r' = N_r r + N_|r|r |r| r + b·(F1 − F2)
+    F1 = (1 + ε)·f1(U1),  F2 = (1 − ε)·f2(U2)   (lagged)
+    v' = −a·u·r − v/τ_v      (a = m/(m − Y_v'), τ_v = (m − Y_v')/(−Y_v))
+    ψ' = r,  x' = u cos ψ − v sin ψ + c_n,  y' = u sin ψ + v cos ψ + c_e
+
+So the boat speeding up from rest, slowing down and turning is *predicted*:
+the GPS velocity then confirms a change along the heading instead of
+surprising the filter, and its direction (the acceleration is along the hull)
+is heading information that a compass bias and a current cannot fake.  The
+model's steady errors are states: η scales the thrust against the modelled
+drag (hull drag ±25 %, thrust curve ±15 % fold into one ratio at any speed),
+ε is the mismatch of the two thrusters (Δf; misalignment's yaw moment looks
+alike), whose yaw moment the controller's differential thrust cancels on a
+straight leg and which, in a hard turn with one thruster in reverse, changes
+the surge thrust too.  What is left
+of the model's error is process noise that grows with the net acceleration
+(``model_accel_error`` of it, over ``model_error_tau_s``: mass and inertia
+±25 %, thrust lag 0.1–0.3 s) and, in yaw, with the size of the moments (the
+damping, and the differential thrust the controller balances), so the filter is
+sure of the model at steady speed on a line and not while the boat
+accelerates or turns: a model error then goes to the yaw rate, which the gyro
+measures, and not to the gyro's bias.  A turn's sway is trusted to
+``sway_model_error``.  Gusts and chop are ``surge_noise_mps`` and
+``yaw_accel_walk_dps``.  Each step integrates the mean with the exponential
+Euler method (exact for the linear damping; the surge time constant is
+0.2–0.3 s at speed, shorter than a step is long) and the thrust lag exactly.
+
+Without commands (another pilot, a replayed capture, ``thrust_model`` off) the
+surge speed u is a slow random walk (``accel_walk_mps``) and r a random walk
+(``yaw_accel_walk_dps``); η and ε are then frozen.
+
+The sway model ties the heading to the GPS velocity and makes the compass
+bias, the gyro bias and the current observable; the GPS offset b is a
+first-order Gauss–Markov process whose σ and τ depend on the fix type (RTK
+fixed: millimetres; single point: 1.5 m over minutes, DESIGN.md §4).
 
 Measurements, each at its time of validity (arrival − configured latency):
 GPS position (σ from GST when fresh, else from the fix type), GPS velocity
 (SOG/COG as N/E components; SOG alone from a VTG without course), true heading
 (HDT/THS from a dual-antenna source, unbiased), compass heading (magnetic +
-variation, biased), ROT (biased).
+variation, biased), ROT (biased).  Thruster commands take their place in the
+same time line.
 
 Compass bias vs current (and crab)
 ----------------------------------
-On a straight leg a compass bias b_c and a cross-track current c⊥ show the
-same thing, a constant angle between heading and course: only U·b_c + c⊥ is
-seen.  A constant sideways thrust (misaligned thrusters) does too.  The filter
-keeps both states with honest priors (b_c: ``compass_bias_sigma_deg``, 3°;
-current: ``current_sigma_mps``, 0.3 m/s) and lets the turns separate them: on
+On a straight leg at constant speed a compass bias b_c and a cross-track
+current c⊥ show the same thing, a constant angle between heading and course:
+only U·b_c + c⊥ is seen.  What separates them is a change of the boat's
+velocity through the water that the current does not share: a turn (on
 headings ψ and ψ + 180° the current's share changes sign and the bias's does
-not, so after legs in opposite directions (half the rectangle, or one circle)
-both are resolved.  Until then the crab goes mostly to the current (its prior
-is the wider one at boat speed): the heading stays within the compass's bias
-rather than chasing the crab (17° for 0.3 m/s across at 1 m/s).  With
-``estimate_current = false`` the bias alone explains any crab: best without
-current, wrong with one.  A true heading (HDT/THS) makes the bias directly
-observable.  A constant crab from thruster misalignment cannot be told from a
-compass bias with these sensors: it ends up in b_c (the heading then is the
-direction the boat moves through the water, which is what line tracking needs).
+not), and a change of speed along the heading — the acceleration from rest at
+the start of a mission, which the thrust model predicts, shows the heading
+directly.  The filter keeps both states with honest priors (b_c:
+``compass_bias_sigma_deg``, 3°; current: ``current_sigma_mps``, 0.3 m/s).
+With ``estimate_current = false`` the bias alone explains any crab: best
+without current, wrong with one.  A true heading (HDT/THS) makes the bias
+directly observable.  A constant sideways thrust (thrusters misaligned the
+same way) cannot be told from a compass bias with these sensors: it ends up in
+b_c (the heading then is the direction the boat moves through the water, which
+is what line tracking needs).
 
 EKF rather than UKF
 -------------------
 The nonlinearities are mild and smooth (rotations by ψ in the kinematics and
-the velocity measurement, the product u·r in the sway), all measurements but
-the velocity are linear, and the state is observed at 10–20 Hz, so the
-linearisation error between updates is tiny.  A UKF needs 2n+1 = 25 sigma
-points per predict and per update, some twenty times the arithmetic of the
-EKF, which would not fit the 100 µs budget in Python.  Heading wrap-around is
-handled explicitly (innovations wrapped to (−π, π]), as a UKF would need too.
+the velocity measurement, the products u·r, |u|·u in the model), all
+measurements but the velocity are linear, and the state is observed at
+10–20 Hz, so the linearisation error between updates is tiny.  A UKF needs
+2n+1 = 29 sigma points per predict and per update, some twenty times the
+arithmetic of the EKF.  Heading wrap-around is handled explicitly (innovations
+wrapped to (−π, π]), as a UKF would need too.
 
 Representation and cost
 -----------------------
 The mean is a list of Python floats (scalar ``math`` for the nonlinear parts);
-the 12×12 covariance is a numpy array.  Measured on this machine: one scalar
-update ≈ 5 µs in numpy against 18–27 µs in plain Python lists (flat or
-nested), the prediction F·P·Fᵀ ≈ 4 µs against ≈ 31 µs; for 12 states numpy
-wins, scalar Python would only pay below ~6.  Heading and ROT are scalar
-updates; GPS position and velocity are 2-D batch updates (2×2 inverse by hand)
-so that their gate is the joint χ²₂.  The update is P − K·(PHᵀ)ᵀ, symmetrised
-at every prediction; a Joseph form gave identical figures for +7 µs an update.
-A whole ``on_*`` call (snapshot, prediction, update) has a median of ≈ 18 µs
-(compass ≈ 31 µs as it carries the 20 Hz prediction, ROT ≈ 12 µs, GGA ≈ 20 µs);
-``state(t)`` ≈ 20 µs when it has to predict.
+the 14×14 covariance is a numpy array, and every product is one numpy call on
+preallocated Jacobians (``F``, the velocity and output rows are filled in place
+through precomputed flat indices, never allocated per step).  Heading and ROT
+are scalar updates; GPS position and velocity are 2-D updates (2×2 inverse by
+hand) so that their gate is the joint χ²₂.  The update is P − K·(PHᵀ)ᵀ; P is
+symmetrised at every prediction.  Measurements that share a time of validity
+(an epoch's GGA and RMC, a compass epoch's HDG and ROT) share one prediction and
+one history snapshot.  ``state(t)`` at the filter's own time does not predict.
 
-Manoeuvres: the surge speed is a slow random walk (``accel_walk_mps``), which
-keeps the filter consistent at steady speed.  A GPS velocity beyond its gate
-but within ``max_accel_mps2`` of the last one is taken as a manoeuvre (the
-speed and position variances are opened by the innovation and it is fused),
-not as a fault; so is an RTK position beyond its gate when no GPS velocity
-comes (GGA-only receivers).
+Manoeuvres without the thrust model: a GPS velocity beyond its gate but within
+``max_accel_mps2`` of the last one is taken as a manoeuvre (the speed and
+position variances are opened by the innovation and it is fused), not as a
+fault; so is an RTK position beyond its gate when no GPS velocity comes
+(GGA-only receivers).
 
 Late measurements
 -----------------
-Every fused measurement is logged with a snapshot of the filter taken before
-it, for ``history_s`` seconds.  A measurement whose time of validity is before
-the filter time rolls the filter back to the snapshot before the first logged
-measurement that is later than it, fuses it, and re-fuses the later ones: the
-result is what in-order arrival would have given (tested).  Older than the
-history: dropped and counted (``late_dropped``).
+Every fused measurement is logged for ``history_s`` seconds, with a snapshot
+of the filter taken before the first measurement of each time of validity.  A
+measurement whose time of validity is before the filter time rolls the filter
+back to the snapshot before the first logged measurement that is later than
+it, fuses it, and re-fuses the later ones: the result is what in-order arrival
+would have given (tested).  Older than the history: dropped and counted
+(``late_dropped``).
 
 Gating and faults
 -----------------
@@ -131,9 +164,9 @@ Gating and faults
   :meth:`EkfNavigator.status`.
 
 Outages: without GPS the filter dead-reckons (heading from compass and gyro,
-speed through the water held, sway model, current) with growing covariance;
-``pos_valid`` goes false after ``dr_max_s`` without a fused fix or when the
-position σ (worse axis) exceeds ``pos_sigma_max_m``.
+speed through the water from the model or held, sway model, current) with
+growing covariance; ``pos_valid`` goes false after ``dr_max_s`` without a fused
+fix or when the position σ (worse axis) exceeds ``pos_sigma_max_m``.
 """
 
 from __future__ import annotations
@@ -157,19 +190,25 @@ from zarco_core.messages import (
     Heading,
     NavState,
     RateOfTurn,
+    ThrusterCommand,
 )
+from zarco_core.thruster_map import ThrusterMap
+from zarco_core.vessel import VesselModel
 from zarco_runtime.navigation.ekf_config import EkfSettings
 
 # state indices
-IX, IY, IU, IV, IPSI, IR, IBG, IBC, ICN, ICE, IBN, IBE = range(12)
-NX = 12
+IX, IY, IU, IV, IPSI, IR, IBG, IBC, ICN, ICE, IBN, IBE, IETA, IEPS = range(14)
+NX = 14
 STATE_NAMES = ("x_m", "y_m", "u_water_mps", "v_water_mps", "psi_rad", "r_rps",
                "gyro_bias_rps", "compass_bias_rad", "current_n_mps", "current_e_mps",
-               "gps_bias_n_m", "gps_bias_e_m")
+               "gps_bias_n_m", "gps_bias_e_m", "thrust_scale", "yaw_mismatch")
 
-# measurement kinds
-K_POS, K_VEL, K_SOG, K_COMPASS, K_TRUE_HDG, K_ROT = range(6)
+# measurement kinds (K_CMD: a thruster command in the time line, not a measurement)
+K_POS, K_VEL, K_SOG, K_COMPASS, K_TRUE_HDG, K_ROT, K_CMD = range(7)
 KIND_NAMES = ("pos", "vel", "sog", "compass", "true_heading", "rot")
+OK_KEYS = tuple(f"{k}_ok" for k in KIND_NAMES)
+REJECTED_KEYS = tuple(f"{k}_rejected" for k in KIND_NAMES)
+RESET_KEYS = tuple(f"resets_{k}" for k in KIND_NAMES)
 
 TAU = math.tau
 #: prior σ of states nobody has measured yet (m, m/s, rad, rad/s)
@@ -186,6 +225,19 @@ TRUE_HEADING_SENTENCES = frozenset({"HDT", "THS"})
 PREFERRED_WITHIN_S = 2.0
 #: most prediction sub-steps for one interval (longer intervals take longer steps)
 MAX_SUBSTEPS = 200
+#: times of validity closer than this (s) are the same instant (they are rounded to 1 µs)
+SAME_TIME_S = 1e-7
+
+# entries of F (beyond the identity) and of the output Jacobians filled per step
+_F_IDX = np.ravel_multi_index(np.array([
+    (IX, IU), (IX, IV), (IX, IPSI), (IX, ICN), (IY, IU), (IY, IV), (IY, IPSI), (IY, ICE),
+    (IU, IU), (IU, IV), (IU, IR), (IU, IETA), (IU, IEPS), (IV, IV), (IV, IU), (IV, IR),
+    (IPSI, IR), (IR, IR), (IR, IEPS), (IBN, IBN), (IBE, IBE)]).T, (NX, NX))
+_H_VEL_IDX = np.ravel_multi_index(np.array([
+    (0, IU), (0, IV), (0, IPSI), (1, IU), (1, IV), (1, IPSI)]).T, (2, NX))
+_J_IDX = np.ravel_multi_index(np.array([
+    (2, IU), (2, IV), (2, IPSI), (3, IU), (3, IV), (3, IPSI)]).T, (5, NX))
+_DIAG = np.arange(NX) * (NX + 1)
 
 
 def _tov(t: float, latency: float) -> float:
@@ -196,7 +248,8 @@ def _tov(t: float, latency: float) -> float:
 
 @dataclass(slots=True)
 class _Meas:
-    """One measurement in filter units: ``z1, z2`` (m, m/s or rad), variances ``r1, r2``."""
+    """One measurement in filter units: ``z1, z2`` (m, m/s or rad; N for a command's
+    thrusts), variances ``r1, r2``."""
 
     kind: int
     tov: float
@@ -210,12 +263,13 @@ class _Meas:
 class _Core:
     """Everything fusing a measurement changes; copied as the history snapshot."""
 
-    __slots__ = ("P", "fix", "glide", "hdg_init", "pos_init", "rej", "t", "t_hdg", "t_pos",
-                 "t_rot", "t_vel", "vel_init", "x")
+    __slots__ = ("P", "f1", "f2", "fix", "glide", "hdg_init", "pos_init", "rej", "t",
+                 "t_cmd", "t_hdg", "t_pos", "t_rot", "t_vel", "thr1", "thr2", "vel_init", "x")
 
     def __init__(self) -> None:
         self.t = -math.inf
         self.x = [0.0] * NX
+        self.x[IETA] = 1.0
         self.P = np.zeros((NX, NX))
         self.pos_init = False
         self.hdg_init = False
@@ -229,6 +283,11 @@ class _Core:
         self.rej = [math.nan] * 6
         #: published-position offset after a fix upgrade: (time s, north m, east m)
         self.glide: tuple[float, float, float] | None = None
+        #: thrust input: time of the last command (s), its steady thrusts f_i(U_i)
+        #: and the lagged thrusts now (N, port and starboard)
+        self.t_cmd = -math.inf
+        self.thr1 = self.thr2 = 0.0
+        self.f1 = self.f2 = 0.0
 
     def copy(self) -> _Core:
         c = _Core.__new__(_Core)
@@ -245,7 +304,35 @@ class _Core:
         c.t_rot = self.t_rot
         c.rej = self.rej[:]
         c.glide = self.glide
+        c.t_cmd = self.t_cmd
+        c.thr1, c.thr2, c.f1, c.f2 = self.thr1, self.thr2, self.f1, self.f2
         return c
+
+
+@dataclass(frozen=True, slots=True)
+class _Model:
+    """The vessel model's constants as the prediction uses them (SI)."""
+
+    m: float  # rigid-body mass (kg), for the m·v·r term
+    m_u: float  # m − X_u' (kg)
+    i_r: float  # Iz − N_r' (kg m²)
+    x_u: float  # N s/m (negative)
+    x_uu: float  # N s²/m² (negative)
+    n_r: float  # N m s (negative)
+    n_rr: float  # N m s² (negative)
+    b: float  # thruster half-spacing (m)
+    lag_s: float  # thrust time constant (s)
+    sway_a: float  # m/(m − Y_v')
+    sway_tau_s: float  # (m − Y_v')/(−Y_v) (s)
+    port: ThrusterMap
+    stbd: ThrusterMap
+
+    @classmethod
+    def of(cls, v: VesselModel, n_rr: float, port: ThrusterMap, stbd: ThrusterMap) -> _Model:
+        m_v = v.m_kg - v.y_vdot
+        return cls(v.m_kg, v.m_kg - v.x_udot, v.iz_kgm2 - v.n_rdot, v.x_u, v.x_uu, v.n_r,
+                   n_rr, v.b_m, v.thruster_lag_s, v.m_kg / m_v, m_v / max(1e-9, -v.y_v),
+                   port, stbd)
 
 
 @dataclass(slots=True)
@@ -275,8 +362,9 @@ class EkfStatus:
     (pos, vel, sog, compass, true_heading, rot), ``late_dropped``, ``replays``,
     ``fix_changes``, ``resets_<kind>``, ``compass_frozen`` / ``compass_jumping``
     (events), ``compass_rejected_fault``, ``vel_manoeuvre``, ``pos_manoeuvre``,
-    ``heading_from_course``.  ``state`` is the full mean (see
-    :data:`STATE_NAMES`), ``sigma`` its 1σ.
+    ``heading_from_course``, ``commands``.  ``state`` is the full mean (see
+    :data:`STATE_NAMES`), ``sigma`` its 1σ.  ``thrust_model``: the thruster
+    commands are a prediction input at ``t``.
     """
 
     t: float
@@ -294,15 +382,19 @@ class EkfStatus:
     sigma: dict[str, float]
     #: what the published position still has to glide after a fix upgrade (m)
     glide_m: float = 0.0
+    thrust_model: bool = False
 
 
 class EkfNavigator:
-    """GPS + GST + true heading + compass + gyro → NavState, by an EKF in local NED.
+    """GPS + GST + true heading + compass + gyro (+ thruster commands) → NavState,
+    by an EKF in local NED.
 
     ``frame`` is the local NED frame (its origin is used through the scalar
     :class:`~zarco_core.localgeo.FastLocalFrame`);
     ``variation_deg`` (east positive) is added to headings that arrive magnetic
-    (``Heading.true`` false), as :class:`SimpleNavigator` does.
+    (``Heading.true`` false), as :class:`SimpleNavigator` does.  The thrust
+    model needs :meth:`set_vessel` (the navigation task does it from the
+    runtime's ``[vessel]`` and ``[thrusters]``).
     """
 
     def __init__(self, cfg: EkfSettings, frame: LocalFrame,
@@ -337,29 +429,43 @@ class EkfNavigator:
         self._true_sources = frozenset(cfg.true_heading_sources)
         self._lever = (cfg.lever_x_m, cfg.lever_y_m)
         self._has_lever = cfg.lever_x_m != 0.0 or cfg.lever_y_m != 0.0
-        # process noise, variance per second (the sway and the GPS offset are
-        # Gauss–Markov and handled in _step)
-        q = [0.0] * NX
-        q[IU] = cfg.accel_walk_mps**2
-        q[IR] = d2r(cfg.yaw_accel_walk_dps) ** 2
-        q[IBG] = d2r(cfg.gyro_bias_walk_dps) ** 2
-        q[IBC] = d2r(cfg.compass_bias_walk_deg) ** 2
-        if cfg.estimate_current:
-            q[ICN] = q[ICE] = cfg.current_walk_mps**2
-        self._q = np.array(q)
+        # process noise densities (variance per second); the sway and the GPS
+        # offset are Gauss–Markov and handled in _step
+        self._q_u_walk = cfg.accel_walk_mps**2
+        self._q_u_model = cfg.surge_noise_mps**2
+        self._q_r = d2r(cfg.yaw_accel_walk_dps) ** 2
+        self._q_bg = d2r(cfg.gyro_bias_walk_dps) ** 2
+        self._q_bc = d2r(cfg.compass_bias_walk_deg) ** 2
+        self._q_c = cfg.current_walk_mps**2 if cfg.estimate_current else 0.0
+        self._q_eta = cfg.thrust_scale_walk**2
+        self._q_eps = cfg.yaw_mismatch_walk**2
+        self._k_model = cfg.model_accel_error**2 * cfg.model_error_tau_s
+        self._k_sway = cfg.sway_model_error**2
+        self._model: _Model | None = None
         self._F = np.eye(NX)
-        self._diag = np.arange(NX) * (NX + 1)
+        self._J = np.zeros((5, NX))
+        self._J[0, IX] = self._J[1, IY] = self._J[4, IPSI] = 1.0
+        self._J[2, ICN] = self._J[3, ICE] = 1.0
         self._h_compass = _row({IPSI: 1.0, IBC: 1.0})
         self._h_true = _row({IPSI: 1.0})
         self._h_rot = _row({IR: 1.0, IBG: 1.0})
         self._h_pos = np.zeros((2, NX))
         self._h_pos[0, IX] = self._h_pos[0, IBN] = 1.0
         self._h_pos[1, IY] = self._h_pos[1, IBE] = 1.0
+        self._h_vel = np.zeros((2, NX))
+        self._h_vel[0, ICN] = self._h_vel[1, ICE] = 1.0
         self._gates = (cfg.gate_2d, cfg.gate_2d, cfg.gate_1d, cfg.gate_1d, cfg.gate_1d,
                        cfg.gate_1d)
         self._frozen_turn = d2r(cfg.frozen_turn_deg)
         self._jump = d2r(cfg.jump_deg)
         self.reset()
+
+    def set_vessel(self, vessel: VesselModel, port: ThrusterMap, stbd: ThrusterMap) -> None:
+        """The vessel model and the thrusters' maps f (command → N) that turn thruster
+        commands into the prediction's input (see the module doc).  Without it, or with
+        ``thrust_model`` off, commands are ignored."""
+        self._model = (_Model.of(vessel, self.cfg.yaw_damping_quad, port, stbd)
+                       if self.cfg.thrust_model else None)
 
     # ------------------------------------------------------------ set-up
     def reset(self) -> None:
@@ -378,8 +484,12 @@ class EkfNavigator:
         if cfg.estimate_current:
             P[ICN, ICN] = P[ICE, ICE] = cfg.current_sigma_mps**2
         P[IBN, IBN] = P[IBE, IBE] = cfg.bias_single_m**2
+        P[IETA, IETA] = cfg.thrust_scale_sigma**2
+        P[IEPS, IEPS] = cfg.yaw_mismatch_sigma**2
         self._c = c
-        self._hist: deque[tuple[float, _Core, _Meas]] = deque()
+        #: (time of validity, snapshot before it or None within a group of equal
+        #: times of validity, measurement)
+        self._hist: deque[tuple[float, _Core | None, _Meas]] = deque()
         self._replaying = False
         self.fix = FixQuality.NONE  # last fix quality received (any), for NavState
         self.lat = math.nan
@@ -398,7 +508,7 @@ class EkfNavigator:
             self.counters[key] = self.counters.get(key, 0) + 1
 
     # ------------------------------------------------------ message input
-    def handler(self, m: object) -> Callable[[Any], None] | None:
+    def handler(self, m: object) -> Callable[[Any], object] | None:
         """The ``on_*`` method that takes message ``m`` (None: a message it does not use)."""
         if isinstance(m, GpsFix):
             return self.on_fix
@@ -410,28 +520,31 @@ class EkfNavigator:
             return self.on_heading
         if isinstance(m, RateOfTurn):
             return self.on_rate
+        if isinstance(m, ThrusterCommand):
+            return self.on_command
         return None
 
-    def on_fix(self, m: GpsFix) -> None:
-        """A GPS position (GGA, or RMC when no GGA comes): one per receiver epoch."""
+    def on_fix(self, m: GpsFix) -> bool:
+        """A GPS position (GGA, or RMC when no GGA comes): one per receiver epoch.
+        Returns whether it was taken (False: another sentence of the epoch carries it)."""
         cfg = self.cfg
         if m.sentence == "GGA":
             self._t_gga = m.t
         elif m.t - self._t_gga < PREFERRED_WITHIN_S:
-            return  # the GGA of this epoch carries it, with the RTK quality
+            return False  # the GGA of this epoch carries it, with the RTK quality
         self.fix = m.fix
         if m.lat_deg is None or m.lon_deg is None or m.fix is FixQuality.NONE:
-            return
+            return True
         if m.fix < self.min_fix:
             self._count("pos_below_min_fix")
-            return
+            return True
         if not (math.isfinite(m.lat_deg) and math.isfinite(m.lon_deg)):
             self._count("pos_invalid")
-            return
+            return True
         if m.utc_s is not None:
             key = (m.sentence, m.utc_s)
             if key == self._fix_key:
-                return  # the same epoch again
+                return False  # the same epoch again
             self._fix_key = key
         self.lat, self.lon = m.lat_deg, m.lon_deg
         n, e = self.geo.to_ned(m.lat_deg, m.lon_deg)
@@ -443,6 +556,7 @@ class EkfNavigator:
             r1 = max(floor2, g[1] * g[1] - sb2)
             r2 = max(floor2, g[2] * g[2] - sb2)
         self._process(_Meas(K_POS, _tov(m.t, cfg.gps_latency_s), n, e, r1, r2, m.fix))
+        return True
 
     def on_gst(self, m: GpsErrorStats) -> None:
         """GST error statistics: per-axis 1σ (m), used for the next fixes of the same type.
@@ -501,9 +615,25 @@ class EkfNavigator:
         self._process(_Meas(K_ROT, _tov(m.t, self.cfg.gyro_latency_s), m.rate_rps, 0.0,
                             self._r_rot))
 
+    def on_command(self, m: ThrusterCommand) -> None:
+        """A thruster command (−100..100, port and starboard) as control sent it at
+        ``m.t``: from then on the prediction's input (ignored without a vessel model)."""
+        mdl = self._model
+        if mdl is None:
+            return
+        u1 = m.u1 if math.isfinite(m.u1) else 0.0
+        u2 = m.u2 if math.isfinite(m.u2) else 0.0
+        self._count("commands")
+        self._process(_Meas(K_CMD, round(m.t, 6), mdl.port.forward(u1),
+                            mdl.stbd.forward(u2)))
+
     def has_gyro(self, t: float) -> bool:
         """True while yaw-rate measurements are arriving."""
         return t - self._t_rot_rx < self.cfg.sensor_timeout_s
+
+    def thrust_model_active(self, t: float) -> bool:
+        """True while the thruster commands are a prediction input (at time ``t``, s)."""
+        return self._model is not None and t - self._c.t_cmd <= self.cfg.command_timeout_s
 
     # -------------------------------------------------- compass monitor
     def _compass_ok(self, m: Heading, z: float, tov: float) -> bool:
@@ -554,14 +684,16 @@ class EkfNavigator:
             self._apply_logged(m)
             return
         hist = self._hist
-        if not hist or m.tov < hist[0][1].t:
+        if not hist or m.tov < hist[0][1].t:  # type: ignore[union-attr]
             self._count("late_dropped")
             return
-        popped: list[tuple[float, _Core, _Meas]] = []
+        popped: list[tuple[float, _Core | None, _Meas]] = []
         while hist and hist[-1][0] > m.tov:
             popped.append(hist.pop())
         self._count("replays")
-        self._c = popped[-1][1]
+        snap = popped[-1][1]  # the first of its time of validity: it has a snapshot
+        assert snap is not None
+        self._c = snap
         self._apply_logged(m)
         was = self._replaying
         self._replaying = True
@@ -572,13 +704,15 @@ class EkfNavigator:
             self._replaying = was
 
     def _apply_logged(self, m: _Meas) -> None:
-        snap = self._c.copy()
-        self._apply(m)
         hist = self._hist
+        snap = None if hist and hist[-1][0] == m.tov else self._c.copy()
+        self._apply(m)
         hist.append((m.tov, snap, m))
         horizon = self._c.t - self.cfg.history_s
         while len(hist) > 1 and hist[0][0] < horizon:
             hist.popleft()
+            while hist and hist[0][1] is None:  # the rest of that time of validity
+                hist.popleft()
 
     def _apply(self, m: _Meas) -> None:
         c = self._c
@@ -590,6 +724,8 @@ class EkfNavigator:
             self._fuse_vel(c, m)
         elif kind == K_ROT:
             self._fuse_rot(c, m)
+        elif kind == K_CMD:
+            c.thr1, c.thr2, c.t_cmd = m.z1, m.z2, m.tov
         else:
             self._fuse_heading(c, m)
 
@@ -609,43 +745,90 @@ class EkfNavigator:
         c.t = t
 
     def _step(self, c: _Core, dt: float) -> None:
+        """One prediction step of ``dt`` seconds from ``c.t`` (advances ``c.t``)."""
         cfg = self.cfg
         x = c.x
         u, v, psi, r = x[IU], x[IV], x[IPSI], x[IR]
-        tv = cfg.sway_tau_s
+        mdl = self._model
+        if mdl is not None and c.t - c.t_cmd <= cfg.command_timeout_s:
+            # thrusts: first-order lag towards f_i(U_i), exact; their mean over the step
+            el = math.exp(-dt / mdl.lag_s)
+            w = (1.0 - el) * mdl.lag_s / dt
+            t1, t2 = c.thr1, c.thr2
+            f1 = t1 + (c.f1 - t1) * w
+            f2 = t2 + (c.f2 - t2) * w
+            c.f1 = t1 + (c.f1 - t1) * el
+            c.f2 = t2 + (c.f2 - t2) * el
+            # thrusts with the mismatch ε: F1 = (1 + ε) f1, F2 = (1 − ε) f2
+            fsum, fdif = f1 + f2, f1 - f2
+            eta, eps = x[IETA], x[IEPS]
+            xs = fsum + eps * fdif
+            # surge: η·(F1 + F2) + X_u u + X_|u|u |u| u + m v r, exponential Euler in u
+            au = abs(u)
+            a_u = (eta * xs + (mdl.x_u + mdl.x_uu * au) * u + mdl.m * v * r) / mdl.m_u
+            lam_u = (mdl.x_u + 2.0 * mdl.x_uu * au) / mdl.m_u
+            eu = math.exp(lam_u * dt)
+            phi_u = (eu - 1.0) / lam_u if lam_u < -1e-9 else dt
+            u2 = u + phi_u * a_u
+            # yaw: N_r r + N_|r|r |r| r + b (F1 − F2)
+            ar = abs(r)
+            damp = (mdl.n_r + mdl.n_rr * ar) * r
+            n_act = mdl.b * (fdif + eps * fsum)
+            a_r = (damp + n_act) / mdl.i_r
+            lam_r = (mdl.n_r + 2.0 * mdl.n_rr * ar) / mdl.i_r
+            er = math.exp(lam_r * dt)
+            phi_r = (er - 1.0) / lam_r if lam_r < -1e-9 else dt
+            r2 = r + phi_r * a_r
+            tv, sway_a = mdl.sway_tau_s, mdl.sway_a
+            # model error as noise densities: a share of the net surge acceleration
+            # (a steady error is η's), of the yaw moments (hull and inertia, and the
+            # moment the controller's differential thrust balances)
+            k = self._k_model
+            g_u = abs(a_u) + abs(fdif) / mdl.m_u  # a turn's thrusts work against each other
+            g_r = (abs(damp) + abs(n_act)) / mdl.i_r
+            q_u = (self._q_u_model + k * g_u * g_u) * dt
+            q_r = (self._q_r + k * g_r * g_r) * dt
+            q_eta, q_eps = self._q_eta * dt, self._q_eps * dt
+            d_u_v, d_u_r = phi_u * mdl.m * r / mdl.m_u, phi_u * mdl.m * v / mdl.m_u
+            d_u_eta, d_u_eps = phi_u * xs / mdl.m_u, phi_u * eta * fdif / mdl.m_u
+            d_r_eps = phi_r * mdl.b * fsum / mdl.i_r
+        else:
+            u2, r2, eu, er = u, r, 1.0, 1.0
+            tv, sway_a = cfg.sway_tau_s, cfg.sway_coupling
+            q_u, q_r, q_eta, q_eps = self._q_u_walk * dt, self._q_r * dt, 0.0, 0.0
+            d_u_v = d_u_r = d_u_eta = d_u_eps = d_r_eps = 0.0
+        # sway: v' = −a·u·r − v/τ_v (exact for u·r held over the step)
         ev = math.exp(-dt / tv)
-        gain = cfg.sway_coupling * tv * (1.0 - ev)  # ∂v(t+dt)/∂(−u·r)
-        v2 = v * ev - gain * u * r
-        pm = psi + 0.5 * r * dt
+        gain = sway_a * tv * (1.0 - ev)  # ∂v(t+dt)/∂(−u·r)
+        ur = 0.5 * (u + u2) * 0.5 * (r + r2)
+        v2 = v * ev - gain * ur
+        sway_ss = sway_a * tv * ur  # the turn's steady sideslip, trusted to sway_model_error
+        q_v = (cfg.sway_sigma_mps**2 + self._k_sway * sway_ss * sway_ss) * (1.0 - ev * ev)
+        rm = 0.5 * (r + r2)
+        pm = psi + 0.5 * rm * dt
         sm, cm = math.sin(pm), math.cos(pm)
-        vm = 0.5 * (v + v2)
-        x[IX] += dt * (u * cm - vm * sm + x[ICN])
-        x[IY] += dt * (u * sm + vm * cm + x[ICE])
-        x[IV] = v2
-        x[IPSI] = wrap(psi + r * dt)
+        um, vm = 0.5 * (u + u2), 0.5 * (v + v2)
+        x[IX] += dt * (um * cm - vm * sm + x[ICN])
+        x[IY] += dt * (um * sm + vm * cm + x[ICE])
+        x[IU], x[IV], x[IR] = u2, v2, r2
+        x[IPSI] = wrap(psi + rm * dt)
         dec = math.exp(-dt / self._bias_tau[c.fix])
         x[IBN] *= dec
         x[IBE] *= dec
         F = self._F
-        F[IX, IU] = dt * cm
-        F[IX, IV] = -dt * sm
-        F[IX, IPSI] = -dt * (u * sm + vm * cm)
-        F[IY, IU] = dt * sm
-        F[IY, IV] = dt * cm
-        F[IY, IPSI] = dt * (u * cm - vm * sm)
-        F[IX, ICN] = F[IY, ICE] = dt
-        F[IV, IV] = ev
-        F[IV, IU] = -gain * r
-        F[IV, IR] = -gain * u
-        F[IPSI, IR] = dt
-        F[IBN, IBN] = F[IBE, IBE] = dec
+        F.flat[_F_IDX] = (
+            dt * cm, -dt * sm, -dt * (um * sm + vm * cm), dt,
+            dt * sm, dt * cm, dt * (um * cm - vm * sm), dt,
+            eu, d_u_v, d_u_r, d_u_eta, d_u_eps, ev, -gain * r, -gain * u,
+            dt, er, d_r_eps, dec, dec)
         P = F @ c.P @ F.T
-        P.flat[self._diag] += self._q * dt
-        P[IV, IV] += cfg.sway_sigma_mps**2 * (1.0 - ev * ev)
         gm = self._bias_sigma[c.fix] ** 2 * (1.0 - dec * dec)
-        P[IBN, IBN] += gm
-        P[IBE, IBE] += gm
-        c.P = 0.5 * (P + P.T)
+        P.flat[_DIAG] += (0.0, 0.0, q_u, q_v, 0.0, q_r, self._q_bg * dt, self._q_bc * dt,
+                          self._q_c * dt, self._q_c * dt, gm, gm, q_eta, q_eps)
+        P += P.T
+        P *= 0.5
+        c.P = P
+        c.t += dt
 
     # ----------------------------------------------------------- updates
     def _update1(self, c: _Core, h: np.ndarray, nu: float, r: float, gate: float) -> bool:
@@ -657,10 +840,9 @@ class EkfNavigator:
             return False
         k = pht * (1.0 / s)
         x = c.x
-        for i, dk in enumerate((k * nu).tolist()):
-            x[i] += dk
+        x[:] = [a + b for a, b in zip(x, (k * nu).tolist(), strict=True)]
         x[IPSI] = wrap(x[IPSI])
-        P -= np.outer(k, pht)
+        P -= np.multiply.outer(k, pht)
         return True
 
     def _update2(self, c: _Core, H: np.ndarray, nu1: float, nu2: float, r1: float, r2: float,
@@ -678,10 +860,10 @@ class EkfNavigator:
         nis = nu1 * (ia * nu1 + ib * nu2) + nu2 * (ib * nu1 + id_ * nu2)
         if nis > gate:
             return False
-        k = pht @ np.array([[ia, ib], [ib, id_]])
+        k = pht @ np.array(((ia, ib), (ib, id_)))
         x = c.x
-        for i, dk in enumerate((k @ np.array([nu1, nu2])).tolist()):
-            x[i] += dk
+        x[:] = [a_ + b_ for a_, b_ in
+                zip(x, (k @ np.array((nu1, nu2))).tolist(), strict=True)]
         x[IPSI] = wrap(x[IPSI])
         P -= k @ pht.T
         return True
@@ -689,20 +871,20 @@ class EkfNavigator:
     def _rejected(self, c: _Core, kind: int, tov: float) -> bool:
         """Note a gate rejection; True when the sensor has now been rejected for
         ``reset_after_s`` (the caller re-initialises)."""
-        self._count(f"{KIND_NAMES[kind]}_rejected")
+        self._count(REJECTED_KEYS[kind])
         start = c.rej[kind]
         if math.isnan(start):
             c.rej[kind] = tov
             return False
         if tov - start >= self.cfg.reset_after_s:
             c.rej[kind] = math.nan
-            self._count(f"resets_{KIND_NAMES[kind]}")
+            self._count(RESET_KEYS[kind])
             return True
         return False
 
     def _accepted(self, c: _Core, kind: int) -> None:
         c.rej[kind] = math.nan
-        self._count(f"{KIND_NAMES[kind]}_ok")
+        self._count(OK_KEYS[kind])
 
     def _lever_ned(self, psi: float) -> tuple[float, float, float, float]:
         """Antenna offset in NED (m) and its derivative with respect to ψ (m/rad)."""
@@ -807,13 +989,13 @@ class EkfNavigator:
         s, co = math.sin(psi), math.cos(psi)
         vn = u * co - v * s + x[ICN]
         ve = u * s + v * co + x[ICE]
-        H = np.zeros((2, NX))
-        H[0, IU], H[0, IV], H[0, IPSI], H[0, ICN] = co, -s, -(u * s + v * co), 1.0
-        H[1, IU], H[1, IV], H[1, IPSI], H[1, ICE] = s, co, u * co - v * s, 1.0
+        H = self._h_vel
+        H.flat[_H_VEL_IDX] = (co, -s, -(u * s + v * co), s, co, u * co - v * s)
         if self._has_lever:
             ln, le, dln, dle = self._lever_ned(psi)
             vn += r * dln
             ve += r * dle
+            H = H.copy()
             H[0, IR], H[1, IR] = dln, dle
             H[0, IPSI] -= r * ln
             H[1, IPSI] -= r * le
@@ -920,10 +1102,12 @@ class EkfNavigator:
         P[IPSI, :] = 0.0
         P[:, IPSI] = 0.0
         if compass:
-            pbc = P[IBC, IBC]
+            # ψ = z − b_c: ψ's covariance with everything is minus b_c's
+            row = -P[IBC, :]
+            row[IPSI] = P[IBC, IBC] + m.r1
+            P[IPSI, :] = row
+            P[:, IPSI] = row
             x[IPSI] = wrap(m.z1 - x[IBC])
-            P[IPSI, IPSI] = m.r1 + pbc
-            P[IPSI, IBC] = P[IBC, IPSI] = -pbc
         else:
             x[IPSI] = m.z1
             P[IPSI, IPSI] = m.r1
@@ -952,7 +1136,7 @@ class EkfNavigator:
     # ------------------------------------------------------------- output
     def _at(self, t: float) -> _Core:
         c = self._c
-        if t <= c.t or not math.isfinite(c.t):
+        if t - c.t <= SAME_TIME_S or not math.isfinite(c.t):
             return c
         c = c.copy()
         self._predict(c, t)
@@ -967,10 +1151,8 @@ class EkfNavigator:
         u, v = x[IU], x[IV]
         vn = u * co - v * s + x[ICN]
         ve = u * s + v * co + x[ICE]
-        J = np.zeros((5, NX))
-        J[0, IX] = J[1, IY] = J[4, IPSI] = 1.0
-        J[2, IU], J[2, IV], J[2, IPSI], J[2, ICN] = co, -s, -(u * s + v * co), 1.0
-        J[3, IU], J[3, IV], J[3, IPSI], J[3, ICE] = s, co, u * co - v * s, 1.0
+        J = self._J
+        J.flat[_J_IDX] = (co, -s, -(u * s + v * co), s, co, u * co - v * s)
         cov = J @ P @ J.T
         pos_valid, hdg_valid = self._validity(c, t)
         pn, pe = x[IX], x[IY]
@@ -992,7 +1174,7 @@ class EkfNavigator:
             fix=self.fix, pos_valid=pos_valid, heading_valid=hdg_valid,
             cov=tuple(cov.ravel().tolist()),
             gps_age_s=t - c.t_pos if c.pos_init else math.inf,
-            current_n_mps=float(x[ICN]), current_e_mps=float(x[ICE]),
+            current_n_mps=x[ICN], current_e_mps=x[ICE],
         )
 
     def _validity(self, c: _Core, t: float) -> tuple[bool, bool]:
@@ -1021,6 +1203,7 @@ class EkfNavigator:
             state=dict(zip(STATE_NAMES, c.x, strict=True)),
             sigma=dict(zip(STATE_NAMES, sig, strict=True)),
             glide_m=math.hypot(*self._glide_offset(c, t)),
+            thrust_model=self.thrust_model_active(t),
         )
 
 

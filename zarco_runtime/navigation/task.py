@@ -1,8 +1,17 @@
-"""Navigation on the bus: GPS / compass / gyro messages → NavState.
+"""Navigation on the bus: GPS / compass / gyro messages and thruster commands → NavState.
 
 The estimator folds each measurement in as it is published (a bus listener:
 bounded-time work, done in the publishing driver's context, so a fix reaches
-the controller with no scheduling delay) and publishes the updated NavState.
+the controller with no scheduling delay) and publishes the updated NavState
+after each GPS position it takes and each yaw-rate (ROT) measurement — or each
+heading when no gyro is heard: about 30 a second with a 10 Hz receiver and a
+20 Hz compass.  The EKF also listens to the controller's ThrusterCommand, the
+input of its vessel model (see :mod:`zarco_runtime.navigation.ekf`).
+
+What the runtime does with it: construct ``Navigation(cfg, bus, clock)`` before
+the controller starts; nothing else (no task to run).  :meth:`Navigation.state`
+gives the estimate predicted to any time for a caller that wants to read it
+at its own rate instead of extrapolating the last NavState.
 """
 
 from __future__ import annotations
@@ -12,7 +21,16 @@ from typing import TYPE_CHECKING
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.geodesy import LocalFrame
-from zarco_core.messages import GpsErrorStats, GpsFix, GpsVelocity, Heading, RateOfTurn
+from zarco_core.messages import (
+    GpsErrorStats,
+    GpsFix,
+    GpsVelocity,
+    Heading,
+    NavState,
+    RateOfTurn,
+    ThrusterCommand,
+)
+from zarco_core.thruster_map import ThrusterMap
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.simple import SimpleNavigator
 
@@ -21,7 +39,8 @@ if TYPE_CHECKING:
 
 
 class Navigation:
-    """Wires a navigator to the bus."""
+    """Wires a navigator to the bus (``navigation.estimator``: the EKF, or the first
+    estimate as a fallback)."""
 
     def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock) -> None:
         o = cfg.origin
@@ -29,8 +48,13 @@ class Navigation:
         var = cfg.devices.compass.variation_deg
         self.nav: SimpleNavigator | EkfNavigator
         if cfg.navigation.estimator == "ekf":
-            self.nav = EkfNavigator(cfg.ekf, frame, var)
-            bus.listen(GpsErrorStats, self.nav.on_gst)
+            ekf = EkfNavigator(cfg.ekf, frame, var)
+            th = cfg.thrusters
+            ekf.set_vessel(cfg.vessel, ThrusterMap.from_table(th.port.u, th.port.f_n),
+                           ThrusterMap.from_table(th.starboard.u, th.starboard.f_n))
+            bus.listen(GpsErrorStats, ekf.on_gst)
+            bus.listen(ThrusterCommand, ekf.on_command)
+            self.nav = ekf
         else:
             self.nav = SimpleNavigator(cfg.navigation, frame, var)
         self.bus = bus
@@ -40,12 +64,16 @@ class Navigation:
         bus.listen(Heading, self._on_heading)
         bus.listen(RateOfTurn, self._on_rate)
 
+    def state(self, t: float) -> NavState:
+        """The estimate predicted to time ``t`` (s), not published."""
+        return self.nav.state(t)
+
     def _publish(self, t: float) -> None:
         self.bus.publish(self.nav.state(t))
 
     def _on_fix(self, m: GpsFix) -> None:
-        self.nav.on_fix(m)
-        self._publish(m.t)
+        if self.nav.on_fix(m):  # False: a sentence of an epoch another one carries
+            self._publish(m.t)
 
     def _on_heading(self, m: Heading) -> None:
         self.nav.on_heading(m)
