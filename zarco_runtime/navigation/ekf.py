@@ -197,11 +197,12 @@ from zarco_core.vessel import VesselModel
 from zarco_runtime.navigation.ekf_config import EkfSettings
 
 # state indices
-IX, IY, IU, IV, IPSI, IR, IBG, IBC, ICN, ICE, IBN, IBE, IETA, IEPS = range(14)
-NX = 14
+IX, IY, IU, IV, IPSI, IR, IBG, IBC, ICN, ICE, IBN, IBE, IETA, IEPS, IPS, IPD = range(16)
+NX = 16
 STATE_NAMES = ("x_m", "y_m", "u_water_mps", "v_water_mps", "psi_rad", "r_rps",
                "gyro_bias_rps", "compass_bias_rad", "current_n_mps", "current_e_mps",
-               "gps_bias_n_m", "gps_bias_e_m", "thrust_scale", "yaw_mismatch")
+               "gps_bias_n_m", "gps_bias_e_m", "thrust_scale", "thrust_mismatch",
+               "misalign_common_rad", "misalign_diff_rad")
 
 # measurement kinds (K_CMD: a thruster command in the time line, not a measurement)
 K_POS, K_VEL, K_SOG, K_COMPASS, K_TRUE_HDG, K_ROT, K_CMD = range(7)
@@ -232,7 +233,8 @@ SAME_TIME_S = 1e-7
 _F_IDX = np.ravel_multi_index(np.array([
     (IX, IU), (IX, IV), (IX, IPSI), (IX, ICN), (IY, IU), (IY, IV), (IY, IPSI), (IY, ICE),
     (IU, IU), (IU, IV), (IU, IR), (IU, IETA), (IU, IEPS), (IV, IV), (IV, IU), (IV, IR),
-    (IPSI, IR), (IR, IR), (IR, IEPS), (IBN, IBN), (IBE, IBE)]).T, (NX, NX))
+    (IV, IPS), (IV, IPD), (IPSI, IR), (IR, IR), (IR, IEPS), (IR, IPS), (IR, IPD),
+    (IBN, IBN), (IBE, IBE)]).T, (NX, NX))
 _H_VEL_IDX = np.ravel_multi_index(np.array([
     (0, IU), (0, IV), (0, IPSI), (1, IU), (1, IV), (1, IPSI)]).T, (2, NX))
 _J_IDX = np.ravel_multi_index(np.array([
@@ -315,12 +317,14 @@ class _Model:
 
     m: float  # rigid-body mass (kg), for the m·v·r term
     m_u: float  # m − X_u' (kg)
+    m_v: float  # m − Y_v' (kg)
     i_r: float  # Iz − N_r' (kg m²)
     x_u: float  # N s/m (negative)
     x_uu: float  # N s²/m² (negative)
     n_r: float  # N m s (negative)
     n_rr: float  # N m s² (negative)
     b: float  # thruster half-spacing (m)
+    arm: float  # thruster distance aft of the centre of mass (m)
     lag_s: float  # thrust time constant (s)
     sway_a: float  # m/(m − Y_v')
     sway_tau_s: float  # (m − Y_v')/(−Y_v) (s)
@@ -330,9 +334,9 @@ class _Model:
     @classmethod
     def of(cls, v: VesselModel, n_rr: float, port: ThrusterMap, stbd: ThrusterMap) -> _Model:
         m_v = v.m_kg - v.y_vdot
-        return cls(v.m_kg, v.m_kg - v.x_udot, v.iz_kgm2 - v.n_rdot, v.x_u, v.x_uu, v.n_r,
-                   n_rr, v.b_m, v.thruster_lag_s, v.m_kg / m_v, m_v / max(1e-9, -v.y_v),
-                   port, stbd)
+        return cls(v.m_kg, v.m_kg - v.x_udot, m_v, v.iz_kgm2 - v.n_rdot, v.x_u, v.x_uu,
+                   v.n_r, n_rr, v.b_m, v.l_m, v.thruster_lag_s, v.m_kg / m_v,
+                   m_v / max(1e-9, -v.y_v), port, stbd)
 
 
 @dataclass(slots=True)
@@ -486,6 +490,7 @@ class EkfNavigator:
         P[IBN, IBN] = P[IBE, IBE] = cfg.bias_single_m**2
         P[IETA, IETA] = cfg.thrust_scale_sigma**2
         P[IEPS, IEPS] = cfg.yaw_mismatch_sigma**2
+        P[IPD, IPD] = d2r(cfg.misalignment_sigma_deg) ** 2
         self._c = c
         #: (time of validity, snapshot before it or None within a group of equal
         #: times of validity, measurement)
@@ -761,8 +766,9 @@ class EkfNavigator:
             c.f2 = t2 + (c.f2 - t2) * el
             # thrusts with the mismatch ε: F1 = (1 + ε) f1, F2 = (1 − ε) f2
             fsum, fdif = f1 + f2, f1 - f2
-            eta, eps = x[IETA], x[IEPS]
-            xs = fsum + eps * fdif
+            eta, eps, phs, phd = x[IETA], x[IEPS], x[IPS], x[IPD]
+            xs, xd = fsum + eps * fdif, fdif + eps * fsum  # F1 + F2, F1 − F2
+            y_act = phs * xs + phd * xd  # the thrusters' side force (misalignment)
             # surge: η·(F1 + F2) + X_u u + X_|u|u |u| u + m v r, exponential Euler in u
             au = abs(u)
             a_u = (eta * xs + (mdl.x_u + mdl.x_uu * au) * u + mdl.m * v * r) / mdl.m_u
@@ -773,7 +779,7 @@ class EkfNavigator:
             # yaw: N_r r + N_|r|r |r| r + b (F1 − F2)
             ar = abs(r)
             damp = (mdl.n_r + mdl.n_rr * ar) * r
-            n_act = mdl.b * (fdif + eps * fsum)
+            n_act = mdl.b * xd - mdl.arm * y_act
             a_r = (damp + n_act) / mdl.i_r
             lam_r = (mdl.n_r + 2.0 * mdl.n_rr * ar) / mdl.i_r
             er = math.exp(lam_r * dt)
@@ -792,16 +798,21 @@ class EkfNavigator:
             d_u_v, d_u_r = phi_u * mdl.m * r / mdl.m_u, phi_u * mdl.m * v / mdl.m_u
             d_u_eta, d_u_eps = phi_u * xs / mdl.m_u, phi_u * eta * fdif / mdl.m_u
             d_r_eps = phi_r * mdl.b * fsum / mdl.i_r
+            d_r_phs, d_r_phd = -phi_r * mdl.arm * xs / mdl.i_r, -phi_r * mdl.arm * xd / mdl.i_r
+            g_side = y_act / mdl.m_v  # sway acceleration of the side force
+            d_v_phs, d_v_phd = xs / mdl.m_v, xd / mdl.m_v  # × τ_v (1 − e) below
         else:
             u2, r2, eu, er = u, r, 1.0, 1.0
             tv, sway_a = cfg.sway_tau_s, cfg.sway_coupling
             q_u, q_r, q_eta, q_eps = self._q_u_walk * dt, self._q_r * dt, 0.0, 0.0
-            d_u_v = d_u_r = d_u_eta = d_u_eps = d_r_eps = 0.0
+            d_u_v = d_u_r = d_u_eta = d_u_eps = d_r_eps = d_r_phs = d_r_phd = 0.0
+            g_side = d_v_phs = d_v_phd = 0.0
         # sway: v' = −a·u·r − v/τ_v (exact for u·r held over the step)
         ev = math.exp(-dt / tv)
-        gain = sway_a * tv * (1.0 - ev)  # ∂v(t+dt)/∂(−u·r)
+        tve = tv * (1.0 - ev)
+        gain = sway_a * tve  # ∂v(t+dt)/∂(−u·r)
         ur = 0.5 * (u + u2) * 0.5 * (r + r2)
-        v2 = v * ev - gain * ur
+        v2 = v * ev - gain * ur + tve * g_side
         sway_ss = sway_a * tv * ur  # the turn's steady sideslip, trusted to sway_model_error
         q_v = (cfg.sway_sigma_mps**2 + self._k_sway * sway_ss * sway_ss) * (1.0 - ev * ev)
         rm = 0.5 * (r + r2)
@@ -820,11 +831,11 @@ class EkfNavigator:
             dt * cm, -dt * sm, -dt * (um * sm + vm * cm), dt,
             dt * sm, dt * cm, dt * (um * cm - vm * sm), dt,
             eu, d_u_v, d_u_r, d_u_eta, d_u_eps, ev, -gain * r, -gain * u,
-            dt, er, d_r_eps, dec, dec)
+            tve * d_v_phs, tve * d_v_phd, dt, er, d_r_eps, d_r_phs, d_r_phd, dec, dec)
         P = F @ c.P @ F.T
         gm = self._bias_sigma[c.fix] ** 2 * (1.0 - dec * dec)
         P.flat[_DIAG] += (0.0, 0.0, q_u, q_v, 0.0, q_r, self._q_bg * dt, self._q_bc * dt,
-                          self._q_c * dt, self._q_c * dt, gm, gm, q_eta, q_eps)
+                          self._q_c * dt, self._q_c * dt, gm, gm, q_eta, q_eps, 0.0, 0.0)
         P += P.T
         P *= 0.5
         c.P = P

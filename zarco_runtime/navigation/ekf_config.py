@@ -126,6 +126,11 @@ class EkfSettings:
                                      "model's thrusts are (1 + ε) f1 and (1 − ε) f2: Δf up to "
                                      "10 %; a misalignment's yaw moment looks alike)",
                                      min=0.0, max=2.0)
+    misalignment_sigma_deg: float = spec(2.0, "deg", "1σ prior of the thrusters' "
+                                         "misalignment, common (φ1 + φ2)/2 and differential "
+                                         "(φ1 − φ2)/2: their side force φ1·F1 + φ2·F2 makes the "
+                                         "hull crab (up to ±3° per thruster, set at launch)",
+                                         min=0.0, max=30.0)
     yaw_mismatch_walk: float = spec(0.003, "1/√s", "random walk of ε", min=0.0, max=1.0)
     sway_model_error: float = spec(0.3, "", "relative 1σ of the turn-induced sway a·u·r "
                                    "(hull ±25 %)", min=0.0, max=5.0)
