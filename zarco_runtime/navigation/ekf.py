@@ -204,8 +204,8 @@ STATE_NAMES = ("x_m", "y_m", "u_water_mps", "v_water_mps", "psi_rad", "r_rps",
                "gps_bias_n_m", "gps_bias_e_m", "thrust_scale", "thrust_mismatch",
                "misalign_common_rad", "misalign_diff_rad")
 
-# measurement kinds (K_CMD: a thruster command in the time line, not a measurement)
-K_POS, K_VEL, K_SOG, K_COMPASS, K_TRUE_HDG, K_ROT, K_CMD = range(7)
+# measurement kinds
+K_POS, K_VEL, K_SOG, K_COMPASS, K_TRUE_HDG, K_ROT = range(6)
 KIND_NAMES = ("pos", "vel", "sog", "compass", "true_heading", "rot")
 OK_KEYS = tuple(f"{k}_ok" for k in KIND_NAMES)
 REJECTED_KEYS = tuple(f"{k}_rejected" for k in KIND_NAMES)
@@ -240,6 +240,11 @@ _H_VEL_IDX = np.ravel_multi_index(np.array([
 _J_IDX = np.ravel_multi_index(np.array([
     (2, IU), (2, IV), (2, IPSI), (3, IU), (3, IV), (3, IPSI)]).T, (5, NX))
 _DIAG = np.arange(NX) * (NX + 1)
+_PXX, _PYY, _PPSI = IX * (NX + 1), IY * (NX + 1), IPSI * (NX + 1)
+
+
+def _kind(m: _Meas) -> int:
+    return m.kind
 
 
 def _tov(t: float, latency: float) -> float:
@@ -265,8 +270,9 @@ class _Meas:
 class _Core:
     """Everything fusing a measurement changes; copied as the history snapshot."""
 
-    __slots__ = ("P", "f1", "f2", "fix", "glide", "hdg_init", "pos_init", "rej", "t",
-                 "t_cmd", "t_hdg", "t_pos", "t_rot", "t_vel", "thr1", "thr2", "vel_init", "x")
+    __slots__ = ("P", "cmd_seq", "f1", "f2", "fix", "glide", "hdg_init", "pos_init", "rej",
+                 "t", "t_cmd", "t_hdg", "t_pos", "t_rot", "t_vel", "thr1", "thr2", "vel_init",
+                 "x")
 
     def __init__(self) -> None:
         self.t = -math.inf
@@ -288,6 +294,7 @@ class _Core:
         #: thrust input: time of the last command (s), its steady thrusts f_i(U_i)
         #: and the lagged thrusts now (N, port and starboard)
         self.t_cmd = -math.inf
+        self.cmd_seq = 0  # the last command taken up
         self.thr1 = self.thr2 = 0.0
         self.f1 = self.f2 = 0.0
 
@@ -307,6 +314,7 @@ class _Core:
         c.rej = self.rej[:]
         c.glide = self.glide
         c.t_cmd = self.t_cmd
+        c.cmd_seq = self.cmd_seq
         c.thr1, c.thr2, c.f1, c.f2 = self.thr1, self.thr2, self.f1, self.f2
         return c
 
@@ -462,6 +470,10 @@ class EkfNavigator:
                        cfg.gate_1d)
         self._frozen_turn = d2r(cfg.frozen_turn_deg)
         self._jump = d2r(cfg.jump_deg)
+        self._pos_var_max = cfg.pos_sigma_max_m**2
+        #: commands kept: the history's span at 100 Hz, and at least 200
+        self._cmds_max = max(200, int(cfg.history_s * 100.0) * 2)
+        self._hdg_var_max = d2r(cfg.heading_sigma_max_deg) ** 2
         self.reset()
 
     def set_vessel(self, vessel: VesselModel, port: ThrusterMap, stbd: ThrusterMap) -> None:
@@ -494,7 +506,12 @@ class EkfNavigator:
         self._c = c
         #: (time of validity, snapshot before it or None within a group of equal
         #: times of validity, measurement)
-        self._hist: deque[tuple[float, _Core | None, _Meas]] = deque()
+        self._hist: deque[tuple[float, _Core | None, list[_Meas]]] = deque()
+        #: measurements of one time of validity not yet fused
+        self._pending: list[_Meas] = []
+        #: thruster commands (sequence number, time s, steady thrusts f1(U1), f2(U2) N)
+        self._cmds: list[tuple[int, float, float, float]] = []
+        self._cmd_seq = 0
         self._replaying = False
         self.fix = FixQuality.NONE  # last fix quality received (any), for NavState
         self.lat = math.nan
@@ -506,11 +523,18 @@ class EkfNavigator:
         self._t_rot_rx = -math.inf
         self._heading_sensor_seen = False
         self._compass: dict[str, _CompassMonitor] = {}
-        self.counters: dict[str, int] = {}
+        self._counters: dict[str, int] = {}
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """Event counters (see :class:`EkfStatus`), with every measurement received fused."""
+        self._flush()
+        return self._counters
 
     def _count(self, key: str) -> None:
         if not self._replaying:
-            self.counters[key] = self.counters.get(key, 0) + 1
+            c = self._counters
+            c[key] = c.get(key, 0) + 1
 
     # ------------------------------------------------------ message input
     def handler(self, m: object) -> Callable[[Any], object] | None:
@@ -629,8 +653,11 @@ class EkfNavigator:
         u1 = m.u1 if math.isfinite(m.u1) else 0.0
         u2 = m.u2 if math.isfinite(m.u2) else 0.0
         self._count("commands")
-        self._process(_Meas(K_CMD, round(m.t, 6), mdl.port.forward(u1),
-                            mdl.stbd.forward(u2)))
+        cmds = self._cmds
+        self._cmd_seq += 1
+        cmds.append((self._cmd_seq, round(m.t, 6), mdl.port.forward(u1), mdl.stbd.forward(u2)))
+        if len(cmds) > self._cmds_max:  # older than any snapshot in the history
+            del cmds[: len(cmds) - self._cmds_max // 2]
 
     def has_gyro(self, t: float) -> bool:
         """True while yaw-rate measurements are arriving."""
@@ -638,7 +665,9 @@ class EkfNavigator:
 
     def thrust_model_active(self, t: float) -> bool:
         """True while the thruster commands are a prediction input (at time ``t``, s)."""
-        return self._model is not None and t - self._c.t_cmd <= self.cfg.command_timeout_s
+        cmds = self._cmds
+        return (self._model is not None and bool(cmds)
+                and t - cmds[-1][1] <= self.cfg.command_timeout_s)
 
     # -------------------------------------------------- compass monitor
     def _compass_ok(self, m: Heading, z: float, tov: float) -> bool:
@@ -683,45 +712,78 @@ class EkfNavigator:
 
     # ------------------------------------------------- history / replay
     def _process(self, m: _Meas) -> None:
-        """Fuse ``m`` at its time of validity, re-running later ones if it is late."""
+        """Fuse ``m`` at its time of validity, re-running later ones if it is late.
+
+        Measurements of one time of validity are collected and fused together when
+        the next time of validity (or a read of the state) comes: one prediction,
+        one history snapshot and, for the plain ones, one joint update."""
+        pend = self._pending
+        if pend:
+            if m.tov == pend[0].tov:
+                pend.append(m)
+                return
+            self._flush()
         c = self._c
-        if m.tov >= c.t:
-            self._apply_logged(m)
-            return
         hist = self._hist
-        if not hist or m.tov < hist[0][1].t:  # type: ignore[union-attr]
+        if m.tov > c.t or (m.tov == c.t and not (hist and hist[-1][0] == m.tov)):
+            self._pending.append(m)
+            return
+        # late, or of an instant already fused: re-run from before that instant
+        first = hist[0][1] if hist else None
+        if first is None or m.tov < first.t:
             self._count("late_dropped")
             return
-        popped: list[tuple[float, _Core | None, _Meas]] = []
-        while hist and hist[-1][0] > m.tov:
+        popped: list[tuple[float, _Core | None, list[_Meas]]] = []
+        while hist and hist[-1][0] >= m.tov:
             popped.append(hist.pop())
         self._count("replays")
         snap = popped[-1][1]  # the first of its time of validity: it has a snapshot
         assert snap is not None
         self._c = snap
-        self._apply_logged(m)
+        # m joins the measurements of its own time of validity, as if it had come in time
+        group = [m]
+        while popped and popped[-1][0] == m.tov:
+            group += popped.pop()[2]
         was = self._replaying
         self._replaying = True
         try:
-            for _tov, _snap, old in reversed(popped):
-                self._apply_logged(old)
+            self._apply_logged(group)
+            for _tov, _snap, later in reversed(popped):
+                self._apply_logged(later)
         finally:
             self._replaying = was
 
-    def _apply_logged(self, m: _Meas) -> None:
+    def _flush(self) -> None:
+        """Fuse the measurements waiting for their time of validity to end."""
+        if self._pending:
+            group, self._pending = self._pending, []
+            self._apply_logged(group)
+
+    def _apply_logged(self, group: list[_Meas]) -> None:
         hist = self._hist
-        snap = None if hist and hist[-1][0] == m.tov else self._c.copy()
-        self._apply(m)
-        hist.append((m.tov, snap, m))
+        tov = group[0].tov
+        snap = None if hist and hist[-1][0] == tov else self._c.copy()
+        self._apply(group)
+        hist.append((tov, snap, group))
         horizon = self._c.t - self.cfg.history_s
         while len(hist) > 1 and hist[0][0] < horizon:
             hist.popleft()
             while hist and hist[0][1] is None:  # the rest of that time of validity
                 hist.popleft()
 
-    def _apply(self, m: _Meas) -> None:
+    def _apply(self, group: list[_Meas]) -> None:
+        """Fuse one time of validity's measurements, in an order that does not
+        depend on their arrival (a replay gives what in-order arrival gives)."""
         c = self._c
-        self._predict(c, m.tov)
+        self._predict(c, group[0].tov)
+        if len(group) > 1:
+            group.sort(key=_kind)
+            if self._fuse_joint(c, group):
+                return
+        for m in group:
+            self._fuse(c, m)
+
+    def _fuse(self, c: _Core, m: _Meas) -> None:
         kind = m.kind
         if kind == K_POS:
             self._fuse_pos(c, m)
@@ -729,13 +791,111 @@ class EkfNavigator:
             self._fuse_vel(c, m)
         elif kind == K_ROT:
             self._fuse_rot(c, m)
-        elif kind == K_CMD:
-            c.thr1, c.thr2, c.t_cmd = m.z1, m.z2, m.tov
         else:
             self._fuse_heading(c, m)
 
+    def _fuse_joint(self, c: _Core, group: list[_Meas]) -> bool:
+        """One joint update of a group's plain measurements (GPS velocity, heading,
+        ROT: no initialisation or fault handling due), each block within its own
+        gate; the rest (and any block beyond its gate) is fused alone, afterwards.
+        False: nothing joint to do (the caller fuses the group one by one)."""
+        rows: list[np.ndarray] = []
+        nus: list[float] = []
+        rs: list[float] = []
+        blocks: list[tuple[_Meas, int]] = []  # measurement, its first row
+        rest: list[_Meas] = []
+        x = c.x
+        for m in group:
+            k = m.kind
+            if k == K_VEL and c.hdg_init and c.vel_init:
+                vn, ve, H = self._ground_velocity(x)
+                blocks.append((m, len(nus)))
+                rows += (H[0], H[1])
+                nus += (m.z1 - vn, m.z2 - ve)
+                rs += (m.r1, m.r2)
+            elif k in (K_COMPASS, K_TRUE_HDG) and c.hdg_init:
+                compass = k == K_COMPASS
+                blocks.append((m, len(nus)))
+                rows.append(self._h_compass if compass else self._h_true)
+                nus.append(wrap(m.z1 - x[IPSI] - (x[IBC] if compass else 0.0)))
+                rs.append(m.r1)
+            elif k == K_ROT:
+                blocks.append((m, len(nus)))
+                rows.append(self._h_rot)
+                nus.append(m.z1 - (x[IR] + x[IBG]))
+                rs.append(m.r1)
+            else:
+                rest.append(m)
+        n = len(nus)
+        if n < 2:
+            return False
+        H = np.array(rows)
+        P = c.P
+        pht = P.dot(H.T)
+        S = H.dot(pht)
+        S.flat[:: n + 1] += rs
+        sl = S.tolist()
+        keep: list[int] = []
+        for m, i in blocks:
+            if m.kind == K_VEL:
+                a, b, d = sl[i][i], sl[i][i + 1], sl[i + 1][i + 1]
+                det = a * d - b * b
+                n1, n2 = nus[i], nus[i + 1]
+                ok = det > 0.0 and (n1 * (d * n1 - b * n2) + n2 * (a * n2 - b * n1)) <= (
+                    self._gates[K_VEL] * det)
+                if ok:
+                    keep += (i, i + 1)
+            else:
+                ok = nus[i] * nus[i] <= self._gates[m.kind] * sl[i][i]
+                if ok:
+                    keep.append(i)
+            if not ok:
+                rest.append(m)
+        if keep:
+            if len(keep) < n:
+                idx = np.array(keep)
+                S = S[np.ix_(idx, idx)]
+                pht = pht[:, idx]
+                nu = np.array([nus[i] for i in keep])
+            else:
+                nu = np.array(nus)
+            K = np.linalg.solve(S, pht.T).T
+            x[:] = [a_ + b_ for a_, b_ in zip(x, K.dot(nu).tolist(), strict=True)]
+            x[IPSI] = wrap(x[IPSI])
+            P -= K.dot(pht.T)
+            for m, _i in blocks:
+                if m not in rest:
+                    self._joint_accepted(c, m)
+        for m in rest:
+            self._fuse(c, m)
+        return True
+
+    def _joint_accepted(self, c: _Core, m: _Meas) -> None:
+        k = m.kind
+        self._accepted(c, k)
+        if k == K_VEL:
+            c.t_vel = m.tov
+        elif k == K_ROT:
+            c.t_rot = m.tov
+        else:
+            c.t_hdg = m.tov
+
     # ------------------------------------------------------- prediction
     def _predict(self, c: _Core, t: float) -> None:
+        """Propagate ``c`` to time ``t`` (s), taking up the thruster commands on the way."""
+        cmds = self._cmds
+        if cmds and cmds[-1][0] > c.cmd_seq:
+            for k in range(max(0, len(cmds) - (cmds[-1][0] - c.cmd_seq)), len(cmds)):
+                seq, tc, thr1, thr2 = cmds[k]
+                if seq <= c.cmd_seq:
+                    continue
+                if tc > t:
+                    break
+                self._predict_to(c, tc)
+                c.thr1, c.thr2, c.t_cmd, c.cmd_seq = thr1, thr2, tc, seq
+        self._predict_to(c, t)
+
+    def _predict_to(self, c: _Core, t: float) -> None:
         """Propagate ``c`` to time ``t`` (s) in steps ≤ ``max_step_s``."""
         span = t - c.t
         if span <= 0.0:
@@ -832,7 +992,7 @@ class EkfNavigator:
             dt * sm, dt * cm, dt * (um * cm - vm * sm), dt,
             eu, d_u_v, d_u_r, d_u_eta, d_u_eps, ev, -gain * r, -gain * u,
             tve * d_v_phs, tve * d_v_phd, dt, er, d_r_eps, d_r_phs, d_r_phd, dec, dec)
-        P = F @ c.P @ F.T
+        P = F.dot(c.P).dot(F.T)
         gm = self._bias_sigma[c.fix] ** 2 * (1.0 - dec * dec)
         P.flat[_DIAG] += (0.0, 0.0, q_u, q_v, 0.0, q_r, self._q_bg * dt, self._q_bc * dt,
                           self._q_c * dt, self._q_c * dt, gm, gm, q_eta, q_eps, 0.0, 0.0)
@@ -845,8 +1005,8 @@ class EkfNavigator:
     def _update1(self, c: _Core, h: np.ndarray, nu: float, r: float, gate: float) -> bool:
         """Scalar update with row ``h``, innovation ``nu``, variance ``r``; False if gated."""
         P = c.P
-        pht = P @ h
-        s = float(h @ pht) + r
+        pht = P.dot(h)
+        s = h.dot(pht).item() + r
         if nu * nu > gate * s:
             return False
         k = pht * (1.0 / s)
@@ -860,8 +1020,8 @@ class EkfNavigator:
                  gate: float) -> bool:
         """2-D update (rows ``H``, 2×NX), independent noises ``r1``, ``r2``; False if gated."""
         P = c.P
-        pht = P @ H.T
-        (a, b), (_b, d) = (H @ pht).tolist()
+        pht = P.dot(H.T)
+        (a, b), (_b, d) = H.dot(pht).tolist()
         a += r1
         d += r2
         det = a * d - b * b
@@ -871,12 +1031,12 @@ class EkfNavigator:
         nis = nu1 * (ia * nu1 + ib * nu2) + nu2 * (ib * nu1 + id_ * nu2)
         if nis > gate:
             return False
-        k = pht @ np.array(((ia, ib), (ib, id_)))
+        k = pht.dot(np.array(((ia, ib), (ib, id_))))
         x = c.x
         x[:] = [a_ + b_ for a_, b_ in
-                zip(x, (k @ np.array((nu1, nu2))).tolist(), strict=True)]
+                zip(x, k.dot(np.array((nu1, nu2))).tolist(), strict=True)]
         x[IPSI] = wrap(x[IPSI])
-        P -= k @ pht.T
+        P -= k.dot(pht.T)
         return True
 
     def _rejected(self, c: _Core, kind: int, tov: float) -> bool:
@@ -1146,6 +1306,7 @@ class EkfNavigator:
 
     # ------------------------------------------------------------- output
     def _at(self, t: float) -> _Core:
+        self._flush()
         c = self._c
         if t - c.t <= SAME_TIME_S or not math.isfinite(c.t):
             return c
@@ -1164,7 +1325,7 @@ class EkfNavigator:
         ve = u * s + v * co + x[ICE]
         J = self._J
         J.flat[_J_IDX] = (co, -s, -(u * s + v * co), s, co, u * co - v * s)
-        cov = J @ P @ J.T
+        cov = J.dot(P).dot(J.T)
         pos_valid, hdg_valid = self._validity(c, t)
         pn, pe = x[IX], x[IY]
         if c.glide is not None:
@@ -1190,12 +1351,12 @@ class EkfNavigator:
 
     def _validity(self, c: _Core, t: float) -> tuple[bool, bool]:
         cfg = self.cfg
-        P = c.P
+        item = c.P.item
         pos_valid = (c.pos_init and t - c.t_pos <= cfg.dr_max_s
-                     and max(P[IX, IX], P[IY, IY]) <= cfg.pos_sigma_max_m**2)
+                     and max(item(_PXX), item(_PYY)) <= self._pos_var_max)
         hdg_valid = (c.hdg_init and t - c.t_hdg <= cfg.heading_dr_max_s
-                     and P[IPSI, IPSI] <= math.radians(cfg.heading_sigma_max_deg) ** 2)
-        return bool(pos_valid), bool(hdg_valid)
+                     and item(_PPSI) <= self._hdg_var_max)
+        return pos_valid, hdg_valid
 
     def status(self, t: float) -> EkfStatus:
         """Health, flags, counters and the full state at ``t`` (s)."""

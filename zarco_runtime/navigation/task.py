@@ -1,12 +1,13 @@
 """Navigation on the bus: GPS / compass / gyro messages and thruster commands → NavState.
 
 The estimator folds each measurement in as it is published (a bus listener:
-bounded-time work, done in the publishing driver's context, so a fix reaches
-the controller with no scheduling delay) and publishes the updated NavState
-after each GPS position it takes and each yaw-rate (ROT) measurement — or each
-heading when no gyro is heard: about 30 a second with a 10 Hz receiver and a
-20 Hz compass.  The EKF also listens to the controller's ThrusterCommand, the
-input of its vessel model (see :mod:`zarco_runtime.navigation.ekf`).
+bounded-time work, done in the publishing driver's context) and publishes the
+updated NavState after each yaw-rate (ROT) measurement: at the compass's rate
+(20 Hz, the control rate), carrying every GPS position fused since (a fix
+waits at most one compass period).  Without a gyro it publishes after each
+heading and each GPS position instead.  The EKF also listens to the
+controller's ThrusterCommand, the input of its vessel model (see
+:mod:`zarco_runtime.navigation.ekf`).
 
 What the runtime does with it: construct ``Navigation(cfg, bus, clock)`` before
 the controller starts; nothing else (no task to run).  :meth:`Navigation.state`
@@ -72,7 +73,9 @@ class Navigation:
         self.bus.publish(self.nav.state(t))
 
     def _on_fix(self, m: GpsFix) -> None:
-        if self.nav.on_fix(m):  # False: a sentence of an epoch another one carries
+        # False: a sentence of an epoch another one carries; with a gyro, the
+        # ROT that follows (within one compass period) publishes
+        if self.nav.on_fix(m) and not self.nav.has_gyro(m.t):
             self._publish(m.t)
 
     def _on_heading(self, m: Heading) -> None:
