@@ -271,8 +271,8 @@ class _Core:
     """Everything fusing a measurement changes; copied as the history snapshot."""
 
     __slots__ = ("P", "cmd_seq", "f1", "f2", "fix", "glide", "hdg_init", "pos_init", "rej",
-                 "t", "t_cmd", "t_hdg", "t_pos", "t_rot", "t_vel", "thr1", "thr2", "vel_init",
-                 "x")
+                 "steps", "t", "t_cmd", "t_hdg", "t_pos", "t_rot", "t_vel", "thr1", "thr2",
+                 "vel_init", "x")
 
     def __init__(self) -> None:
         self.t = -math.inf
@@ -295,6 +295,7 @@ class _Core:
         #: and the lagged thrusts now (N, port and starboard)
         self.t_cmd = -math.inf
         self.cmd_seq = 0  # the last command taken up
+        self.steps = 0  # prediction steps so far
         self.thr1 = self.thr2 = 0.0
         self.f1 = self.f2 = 0.0
 
@@ -315,6 +316,7 @@ class _Core:
         c.glide = self.glide
         c.t_cmd = self.t_cmd
         c.cmd_seq = self.cmd_seq
+        c.steps = self.steps
         c.thr1, c.thr2, c.f1, c.f2 = self.thr1, self.thr2, self.f1, self.f2
         return c
 
@@ -454,6 +456,10 @@ class EkfNavigator:
         self._k_model = cfg.model_accel_error**2 * cfg.model_error_tau_s
         self._k_sway = cfg.sway_model_error**2
         self._model: _Model | None = None
+        self._mc: tuple[float, ...] | None = None  # its constants, for the prediction
+        self._cmd_timeout = cfg.command_timeout_s
+        self._sway_tau, self._sway_a = cfg.sway_tau_s, cfg.sway_coupling
+        self._q_sway = cfg.sway_sigma_mps**2
         self._F = np.eye(NX)
         self._J = np.zeros((5, NX))
         self._J[0, IX] = self._J[1, IY] = self._J[4, IPSI] = 1.0
@@ -480,8 +486,14 @@ class EkfNavigator:
         """The vessel model and the thrusters' maps f (command → N) that turn thruster
         commands into the prediction's input (see the module doc).  Without it, or with
         ``thrust_model`` off, commands are ignored."""
-        self._model = (_Model.of(vessel, self.cfg.yaw_damping_quad, port, stbd)
-                       if self.cfg.thrust_model else None)
+        cfg = self.cfg
+        self._model = (_Model.of(vessel, cfg.yaw_damping_quad, port, stbd)
+                       if cfg.thrust_model else None)
+        md = self._model
+        self._mc = None if md is None else (
+            md.m, md.m_u, md.m_v, md.i_r, md.x_u, md.x_uu, md.n_r, md.n_rr, md.b, md.arm,
+            md.lag_s, md.sway_a, md.sway_tau_s, self._k_model, self._q_u_model, self._q_r,
+            self._q_eta, self._q_eps)
 
     # ------------------------------------------------------------ set-up
     def reset(self) -> None:
@@ -853,14 +865,11 @@ class EkfNavigator:
                 rest.append(m)
         if keep:
             if len(keep) < n:
-                idx = np.array(keep)
-                S = S[np.ix_(idx, idx)]
-                pht = pht[:, idx]
-                nu = np.array([nus[i] for i in keep])
-            else:
-                nu = np.array(nus)
-            K = np.linalg.solve(S, pht.T).T
-            x[:] = [a_ + b_ for a_, b_ in zip(x, K.dot(nu).tolist(), strict=True)]
+                sl = [[sl[i][j] for j in keep] for i in keep]
+                pht = pht[:, keep]
+                nus = [nus[i] for i in keep]
+            K = pht.dot(np.array(_spd_inverse(sl)))
+            x[:] = [a_ + b_ for a_, b_ in zip(x, K.dot(np.array(nus)).tolist(), strict=True)]
             x[IPSI] = wrap(x[IPSI])
             P -= K.dot(pht.T)
             for m, _i in blocks:
@@ -911,93 +920,93 @@ class EkfNavigator:
 
     def _step(self, c: _Core, dt: float) -> None:
         """One prediction step of ``dt`` seconds from ``c.t`` (advances ``c.t``)."""
-        cfg = self.cfg
         x = c.x
         u, v, psi, r = x[IU], x[IV], x[IPSI], x[IR]
-        mdl = self._model
-        if mdl is not None and c.t - c.t_cmd <= cfg.command_timeout_s:
+        mc = self._mc
+        if mc is not None and c.t - c.t_cmd <= self._cmd_timeout:
+            (m, m_u, m_v, i_r, x_u, x_uu, n_r, n_rr, b, arm, lag, sway_a, tv, k_mod,
+             q_u0, q_r0, q_eta, q_eps) = mc
             # thrusts: first-order lag towards f_i(U_i), exact; their mean over the step
-            el = math.exp(-dt / mdl.lag_s)
-            w = (1.0 - el) * mdl.lag_s / dt
+            el = math.exp(-dt / lag)
+            w = (1.0 - el) * lag / dt
             t1, t2 = c.thr1, c.thr2
-            f1 = t1 + (c.f1 - t1) * w
-            f2 = t2 + (c.f2 - t2) * w
-            c.f1 = t1 + (c.f1 - t1) * el
-            c.f2 = t2 + (c.f2 - t2) * el
+            g1, g2 = c.f1 - t1, c.f2 - t2
+            f1, f2 = t1 + g1 * w, t2 + g2 * w
+            c.f1, c.f2 = t1 + g1 * el, t2 + g2 * el
             # thrusts with the mismatch ε: F1 = (1 + ε) f1, F2 = (1 − ε) f2
             fsum, fdif = f1 + f2, f1 - f2
-            eta, eps, phs, phd = x[IETA], x[IEPS], x[IPS], x[IPD]
+            eta, eps = x[IETA], x[IEPS]
             xs, xd = fsum + eps * fdif, fdif + eps * fsum  # F1 + F2, F1 − F2
-            y_act = phs * xs + phd * xd  # the thrusters' side force (misalignment)
+            y_act = x[IPS] * xs + x[IPD] * xd  # the thrusters' side force (misalignment)
             # surge: η·(F1 + F2) + X_u u + X_|u|u |u| u + m v r, exponential Euler in u
             au = abs(u)
-            a_u = (eta * xs + (mdl.x_u + mdl.x_uu * au) * u + mdl.m * v * r) / mdl.m_u
-            lam_u = (mdl.x_u + 2.0 * mdl.x_uu * au) / mdl.m_u
+            a_u = (eta * xs + (x_u + x_uu * au) * u + m * v * r) / m_u
+            lam_u = (x_u + 2.0 * x_uu * au) / m_u
             eu = math.exp(lam_u * dt)
             phi_u = (eu - 1.0) / lam_u if lam_u < -1e-9 else dt
             u2 = u + phi_u * a_u
-            # yaw: N_r r + N_|r|r |r| r + b (F1 − F2)
+            # yaw: N_r r + N_|r|r |r| r + b (F1 − F2) − l·side force
             ar = abs(r)
-            damp = (mdl.n_r + mdl.n_rr * ar) * r
-            n_act = mdl.b * xd - mdl.arm * y_act
-            a_r = (damp + n_act) / mdl.i_r
-            lam_r = (mdl.n_r + 2.0 * mdl.n_rr * ar) / mdl.i_r
+            damp = (n_r + n_rr * ar) * r
+            n_act = b * xd - arm * y_act
+            a_r = (damp + n_act) / i_r
+            lam_r = (n_r + 2.0 * n_rr * ar) / i_r
             er = math.exp(lam_r * dt)
             phi_r = (er - 1.0) / lam_r if lam_r < -1e-9 else dt
             r2 = r + phi_r * a_r
-            tv, sway_a = mdl.sway_tau_s, mdl.sway_a
             # model error as noise densities: a share of the net surge acceleration
-            # (a steady error is η's), of the yaw moments (hull and inertia, and the
-            # moment the controller's differential thrust balances)
-            k = self._k_model
-            g_u = abs(a_u) + abs(fdif) / mdl.m_u  # a turn's thrusts work against each other
-            g_r = (abs(damp) + abs(n_act)) / mdl.i_r
-            q_u = (self._q_u_model + k * g_u * g_u) * dt
-            q_r = (self._q_r + k * g_r * g_r) * dt
-            q_eta, q_eps = self._q_eta * dt, self._q_eps * dt
-            d_u_v, d_u_r = phi_u * mdl.m * r / mdl.m_u, phi_u * mdl.m * v / mdl.m_u
-            d_u_eta, d_u_eps = phi_u * xs / mdl.m_u, phi_u * eta * fdif / mdl.m_u
-            d_r_eps = phi_r * mdl.b * fsum / mdl.i_r
-            d_r_phs, d_r_phd = -phi_r * mdl.arm * xs / mdl.i_r, -phi_r * mdl.arm * xd / mdl.i_r
-            g_side = y_act / mdl.m_v  # sway acceleration of the side force
-            d_v_phs, d_v_phd = xs / mdl.m_v, xd / mdl.m_v  # × τ_v (1 − e) below
+            # (a steady error is η's; a turn's thrusts work against each other), of
+            # the yaw moments (hull and inertia, the differential thrust balanced)
+            g_u = abs(a_u) + abs(fdif) / m_u
+            g_r = (abs(damp) + abs(n_act)) / i_r
+            q_u = (q_u0 + k_mod * g_u * g_u) * dt
+            q_r = (q_r0 + k_mod * g_r * g_r) * dt
+            q_eta, q_eps = q_eta * dt, q_eps * dt
+            pu, pr = phi_u / m_u, phi_r / i_r
+            d_u_v, d_u_r, d_u_eta, d_u_eps = pu * m * r, pu * m * v, pu * xs, pu * eta * fdif
+            d_r_eps, d_r_phs, d_r_phd = pr * b * fsum, -pr * arm * xs, -pr * arm * xd
+            g_side = y_act / m_v  # sway acceleration of the side force
+            d_v_phs, d_v_phd = xs / m_v, xd / m_v  # × τ_v (1 − e) below
         else:
             u2, r2, eu, er = u, r, 1.0, 1.0
-            tv, sway_a = cfg.sway_tau_s, cfg.sway_coupling
+            tv, sway_a = self._sway_tau, self._sway_a
             q_u, q_r, q_eta, q_eps = self._q_u_walk * dt, self._q_r * dt, 0.0, 0.0
             d_u_v = d_u_r = d_u_eta = d_u_eps = d_r_eps = d_r_phs = d_r_phd = 0.0
             g_side = d_v_phs = d_v_phd = 0.0
-        # sway: v' = −a·u·r − v/τ_v (exact for u·r held over the step)
+        # sway: v' = −a·u·r − v/τ_v + side force (exact for u·r held over the step)
         ev = math.exp(-dt / tv)
         tve = tv * (1.0 - ev)
         gain = sway_a * tve  # ∂v(t+dt)/∂(−u·r)
-        ur = 0.5 * (u + u2) * 0.5 * (r + r2)
+        um, rm = 0.5 * (u + u2), 0.5 * (r + r2)
+        ur = um * rm
         v2 = v * ev - gain * ur + tve * g_side
         sway_ss = sway_a * tv * ur  # the turn's steady sideslip, trusted to sway_model_error
-        q_v = (cfg.sway_sigma_mps**2 + self._k_sway * sway_ss * sway_ss) * (1.0 - ev * ev)
-        rm = 0.5 * (r + r2)
+        q_v = (self._q_sway + self._k_sway * sway_ss * sway_ss) * (1.0 - ev * ev)
         pm = psi + 0.5 * rm * dt
         sm, cm = math.sin(pm), math.cos(pm)
-        um, vm = 0.5 * (u + u2), 0.5 * (v + v2)
+        vm = 0.5 * (v + v2)
         x[IX] += dt * (um * cm - vm * sm + x[ICN])
         x[IY] += dt * (um * sm + vm * cm + x[ICE])
         x[IU], x[IV], x[IR] = u2, v2, r2
-        x[IPSI] = wrap(psi + rm * dt)
+        x[IPSI] = math.remainder(psi + rm * dt, TAU)
         dec = math.exp(-dt / self._bias_tau[c.fix])
         x[IBN] *= dec
         x[IBE] *= dec
         F = self._F
+        dsm, dcm = dt * sm, dt * cm
         F.flat[_F_IDX] = (
-            dt * cm, -dt * sm, -dt * (um * sm + vm * cm), dt,
-            dt * sm, dt * cm, dt * (um * cm - vm * sm), dt,
+            dcm, -dsm, -(um * dsm + vm * dcm), dt, dsm, dcm, um * dcm - vm * dsm, dt,
             eu, d_u_v, d_u_r, d_u_eta, d_u_eps, ev, -gain * r, -gain * u,
             tve * d_v_phs, tve * d_v_phd, dt, er, d_r_eps, d_r_phs, d_r_phd, dec, dec)
         P = F.dot(c.P).dot(F.T)
         gm = self._bias_sigma[c.fix] ** 2 * (1.0 - dec * dec)
-        P.flat[_DIAG] += (0.0, 0.0, q_u, q_v, 0.0, q_r, self._q_bg * dt, self._q_bc * dt,
-                          self._q_c * dt, self._q_c * dt, gm, gm, q_eta, q_eps, 0.0, 0.0)
-        P += P.T
-        P *= 0.5
+        P.ravel()[:: NX + 1] += (0.0, 0.0, q_u, q_v, 0.0, q_r, self._q_bg * dt,
+                                 self._q_bc * dt, self._q_c * dt, self._q_c * dt, gm, gm,
+                                 q_eta, q_eps, 0.0, 0.0)
+        c.steps += 1
+        if not c.steps & 7:  # F P Fᵀ is symmetric to rounding: re-symmetrise now and then
+            P += P.T
+            P *= 0.5
         c.P = P
         c.t += dt
 
@@ -1377,6 +1386,45 @@ class EkfNavigator:
             glide_m=math.hypot(*self._glide_offset(c, t)),
             thrust_model=self.thrust_model_active(t),
         )
+
+
+def _inv2(p: float, q: float, r: float) -> tuple[float, float, float]:
+    """Inverse (a, b, d) of the symmetric 2×2 matrix [[p, q], [q, r]]."""
+    det = p * r - q * q
+    return r / det, -q / det, p / det
+
+
+def _spd_inverse(a: list[list[float]]) -> list[list[float]]:
+    """Inverse of a small (1–4) symmetric positive-definite matrix (nested lists), in
+    closed form by 2×2 blocks: a joint update's few rows cost less so than any
+    numpy.linalg call.  S = [[A, B], [Bᵀ, D]], M = A⁻¹ B, W = (D − Bᵀ M)⁻¹:
+    S⁻¹ = [[A⁻¹ + M W Mᵀ, −M W], [−W Mᵀ, W]]."""
+    n = len(a)
+    if n == 1:
+        return [[1.0 / a[0][0]]]
+    r0, r1 = a[0], a[1]
+    ia, ib, id_ = _inv2(r0[0], r0[1], r1[1])
+    if n == 2:
+        return [[ia, ib], [ib, id_]]
+    b0, b1 = r0[2], r1[2]  # first column of B
+    m00, m10 = ia * b0 + ib * b1, ib * b0 + id_ * b1  # first column of M
+    if n == 3:
+        w = 1.0 / (a[2][2] - (b0 * m00 + b1 * m10))
+        x0, x1 = m00 * w, m10 * w
+        return [[ia + x0 * m00, ib + x0 * m10, -x0],
+                [ib + x1 * m00, id_ + x1 * m10, -x1],
+                [-x0, -x1, w]]
+    c0, c1 = r0[3], r1[3]  # second column of B
+    m01, m11 = ia * c0 + ib * c1, ib * c0 + id_ * c1
+    wa, wb, wd = _inv2(a[2][2] - (b0 * m00 + b1 * m10), a[2][3] - (b0 * m01 + b1 * m11),
+                       a[3][3] - (c0 * m01 + c1 * m11))
+    x00, x01 = m00 * wa + m01 * wb, m00 * wb + m01 * wd  # M W
+    x10, x11 = m10 * wa + m11 * wb, m10 * wb + m11 * wd
+    e00 = ia + x00 * m00 + x01 * m01
+    e01 = ib + x00 * m10 + x01 * m11
+    e11 = id_ + x10 * m10 + x11 * m11
+    return [[e00, e01, -x00, -x01], [e01, e11, -x10, -x11],
+            [-x00, -x10, wa, wb], [-x01, -x11, wb, wd]]
 
 
 def _row(entries: dict[int, float]) -> np.ndarray:
