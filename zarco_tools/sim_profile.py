@@ -52,7 +52,7 @@ _RULES: tuple[tuple[str, tuple[str, ...], frozenset[str] | None], ...] = (
     ("bus_clock", ("zarco_core/bus", "zarco_core/clock"), None),
     ("asyncio", ("/asyncio/", "/selectors.py", "/heapq"), None),
 )
-CATEGORIES = tuple(dict.fromkeys(r[0] for r in _RULES)) + ("other",)
+CATEGORIES = (*dict.fromkeys(r[0] for r in _RULES), "other")
 #: frames that are skipped over (their time is their caller's)
 _SKIP = ("/numpy/", "/math", "/contextlib", "/functools", "/typing", "/dataclasses",
          "/enum.py", "/re/", "/copy.py", "/collections/")
@@ -73,7 +73,7 @@ def _category(frame: FrameType | None) -> str:
     while f is not None:
         path = f.f_code.co_filename.replace("\\", "/")
         if not any(s in path for s in _SKIP):
-            for cat, parts, funcs in _RULES[1:]:
+            for cat, parts, _funcs in _RULES[1:]:
                 if any(p in path for p in parts):
                     return cat
         f = f.f_back

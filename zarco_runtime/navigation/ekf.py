@@ -270,7 +270,8 @@ class _Meas:
 class _Core:
     """Everything fusing a measurement changes; copied as the history snapshot."""
 
-    __slots__ = ("P", "cmd_seq", "f1", "f2", "fix", "glide", "hdg_init", "pos_init", "rej",
+    __slots__ = ("P", "cmd_seq", "f1", "f2", "fix", "glide", "hdg_course", "hdg_init",
+                 "pos_init", "rej",
                  "steps", "t", "t_cmd", "t_hdg", "t_pos", "t_rot", "t_vel", "thr1", "thr2",
                  "vel_init", "x")
 
@@ -281,6 +282,7 @@ class _Core:
         self.P = np.zeros((NX, NX))
         self.pos_init = False
         self.hdg_init = False
+        self.hdg_course = False  # ψ from the GPS course, no heading sensor yet
         self.vel_init = False
         self.fix = FixQuality.NONE  # fix type of the last fused position
         self.t_pos = -math.inf  # time of validity of the last fused position
@@ -306,6 +308,7 @@ class _Core:
         c.P = self.P.copy()
         c.pos_init = self.pos_init
         c.hdg_init = self.hdg_init
+        c.hdg_course = self.hdg_course
         c.vel_init = self.vel_init
         c.fix = self.fix
         c.t_pos = self.t_pos
@@ -825,7 +828,7 @@ class EkfNavigator:
                 rows += (H[0], H[1])
                 nus += (m.z1 - vn, m.z2 - ve)
                 rs += (m.r1, m.r2)
-            elif k in (K_COMPASS, K_TRUE_HDG) and c.hdg_init:
+            elif k in (K_COMPASS, K_TRUE_HDG) and c.hdg_init and not c.hdg_course:
                 compass = k == K_COMPASS
                 blocks.append((m, len(nus)))
                 rows.append(self._h_compass if compass else self._h_true)
@@ -1081,6 +1084,12 @@ class EkfNavigator:
         if not c.pos_init:
             self._init_pos(c, m, ln, le)
             return
+        if m.tov - c.t_pos > self.cfg.dr_max_s:
+            # dead reckoning has run out (the position went invalid): start again from
+            # this fix rather than gate it against a stale estimate
+            self._count("pos_restarts")
+            self._init_pos(c, m, ln, le)
+            return
         glide = m.fix != c.fix and self._fix_change(c, m)
         x0, y0 = x[IX], x[IY]
         nu1 = m.z1 - (x[IX] + x[IBN] + ln)
@@ -1254,18 +1263,21 @@ class EkfNavigator:
         if speed < self.cfg.course_init_speed_mps:
             return
         x = c.x
-        self._reset_block(c, (IPSI, IU, IV), (COURSE_INIT_SIGMA_RAD**2, m.r1 + m.r2,
-                                              self.cfg.sway_sigma_mps**2))
+        # a heading from the course leaves nothing to tell a current by: held at zero
+        # (with its random walk) until a heading sensor speaks
+        self._reset_block(c, (IPSI, IU, IV, ICN, ICE), (COURSE_INIT_SIGMA_RAD**2, m.r1 + m.r2,
+                                                        self.cfg.sway_sigma_mps**2, 0.0, 0.0))
         x[IPSI] = math.atan2(m.z2, m.z1)
         x[IU], x[IV] = speed, 0.0
-        c.hdg_init = c.vel_init = True
+        x[ICN] = x[ICE] = 0.0
+        c.hdg_init = c.vel_init = c.hdg_course = True
         self._count("heading_from_course")
 
     # ......................................................... heading
     def _fuse_heading(self, c: _Core, m: _Meas) -> None:
         x = c.x
         compass = m.kind == K_COMPASS
-        if not c.hdg_init:
+        if not c.hdg_init or c.hdg_course:
             self._init_heading(c, m, compass)
             return
         nu = wrap(m.z1 - x[IPSI] - (x[IBC] if compass else 0.0))
@@ -1279,6 +1291,11 @@ class EkfNavigator:
     def _init_heading(self, c: _Core, m: _Meas, compass: bool) -> None:
         """(Re-)initialise ψ from a heading measurement (ψ = z − b_c for a compass)."""
         x, P = c.x, c.P
+        if c.hdg_course and self.cfg.estimate_current:
+            # the first heading sensor after a heading from the course: now a current
+            # can be told from the course, starting from its prior
+            self._reset_block(c, (ICN, ICE), (self.cfg.current_sigma_mps**2,) * 2)
+        c.hdg_course = False
         P[IPSI, :] = 0.0
         P[:, IPSI] = 0.0
         if compass:
