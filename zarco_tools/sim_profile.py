@@ -1,4 +1,9 @@
-"""Where the simulator's time goes: a sampling profiler with the standard library only.
+"""Where the simulator's time goes, and how fast it goes against another checkout.
+
+:class:`Sampler` is a sampling profiler with the standard library only;
+:func:`speed_side_by_side` times the same scenarios with two checkouts of the
+code (e.g. this one and the commit before a change, from :func:`checkout`),
+alternating them in one run.
 
 A CPU-time timer signal interrupts the main thread every ``interval_s`` and
 files the Python stack it interrupted under the first
@@ -29,9 +34,18 @@ Categories (:data:`CATEGORIES`), in the order they are tried for each frame:
 
 from __future__ import annotations
 
+import json
+import shutil
 import signal
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from collections import Counter
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
 from types import FrameType
 from typing import Any
 
@@ -122,3 +136,68 @@ def profile_call(fn: Any, *args: Any, interval_s: float = 0.001) -> tuple[Any, d
     with Sampler(interval_s) as s:
         out = fn(*args)
     return out, s.shares(), s.samples, time.perf_counter() - w0
+
+
+# ------------------------------------------------ against another checkout
+#: run in a fresh interpreter with a checkout first on sys.path: one scenario, its report
+_RUNNER = r"""
+import json, sys, time
+root, scenario, seed = sys.argv[1], sys.argv[2], int(sys.argv[3])
+sys.path.insert(0, root)
+from zarco_tools.scenario import load_scenario
+from zarco_tools.simulation import run_scenario
+scn = load_scenario(scenario, sys.argv[4:], seed)
+c0 = time.process_time()
+rep = run_scenario(scn).report
+rep["cpu_seconds"] = time.process_time() - c0
+print(json.dumps({k: v for k, v in rep.items() if isinstance(v, (int, float, str))}))
+"""
+
+
+def run_report(root: Path, scenario: Path, overrides: list[str], seed: int = 1) -> dict[str, Any]:
+    """Simulate ``scenario`` with the code of checkout ``root`` in a fresh interpreter;
+    its report's scalar figures plus ``cpu_seconds`` (the process's CPU time)."""
+    out = subprocess.run([sys.executable, "-c", _RUNNER, str(root), str(scenario), str(seed),
+                          *overrides], capture_output=True, text=True, check=True)
+    rep: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+    return rep
+
+
+def speed_side_by_side(variants: dict[str, tuple[Path, Path, list[str]]], rounds: int = 3,
+                       seed: int = 1, progress: Callable[[str], None] | None = None
+                       ) -> dict[str, dict[str, Any]]:
+    """Simulation speed of each variant (checkout root, scenario, overrides), ``rounds``
+    times, the variants alternating within a round (their order reversed every other
+    round), so that a machine shared with other work loads them alike.
+
+    Per variant: ``speedup`` (simulated / wall seconds: the median, and every run in
+    ``speedup_runs``) and ``cpu_speedup`` (simulated / CPU seconds of the process,
+    less sensitive to other processes on the machine)."""
+    res: dict[str, dict[str, list[float]]] = {k: {"wall": [], "cpu": []} for k in variants}
+    for i in range(rounds):
+        order = list(variants) if i % 2 == 0 else list(reversed(variants))
+        for key in order:
+            root, scenario, overrides = variants[key]
+            rep = run_report(root, scenario, overrides, seed)
+            res[key]["wall"].append(rep["speedup"])
+            res[key]["cpu"].append(round(rep["sim_seconds"] / rep["cpu_seconds"], 1))
+            if progress is not None:
+                progress(f"  {key}: {rep['speedup']}× wall, {res[key]['cpu'][-1]}× CPU")
+    return {k: {"speedup": statistics.median(v["wall"]), "speedup_runs": v["wall"],
+                "cpu_speedup": statistics.median(v["cpu"]), "cpu_speedup_runs": v["cpu"]}
+            for k, v in res.items()}
+
+
+@contextmanager
+def checkout(repo: Path, rev: str) -> Iterator[Path]:
+    """A temporary checkout of ``rev`` (a git worktree beside nothing else), removed after."""
+    tmp = Path(tempfile.mkdtemp(prefix="zarco-rev-"))
+    path = tmp / "src"
+    subprocess.run(["git", "-C", str(repo), "worktree", "add", "--detach", str(path), rev],
+                   check=True, capture_output=True)
+    try:
+        yield path
+    finally:
+        subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(path)],
+                       capture_output=True)
+        shutil.rmtree(tmp, ignore_errors=True)

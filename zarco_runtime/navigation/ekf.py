@@ -10,7 +10,7 @@ Frames and units (DESIGN.md §3): local NED about the configured origin (x
 north, y east, metres), heading ψ clockwise from north (rad, wrapped to
 [−π, π]), body x forward / y starboard, yaw rate r positive clockwise (rad/s).
 
-State (14)
+State (16)
 ----------
 ======  ============  ======================================================
 index   symbol        meaning
@@ -25,6 +25,8 @@ index   symbol        meaning
 10, 11  b_n, b_e      offset of the GPS solution (m): fix = x + b + noise
 12      η             thrust/drag scale of the surge model (1: as modelled)
 13      ε             thruster mismatch: F1 = (1 + ε) f1, F2 = (1 − ε) f2
+14, 15  φ_s, φ_d      common and differential thruster misalignment (rad): the
+                      side force φ_s (F1 + F2) + φ_d (F1 − F2)
 ======  ============  ======================================================
 
 The ground velocity is ``R(ψ)·(u, v) + c`` (DESIGN.md §4 kinematics); NavState
@@ -226,6 +228,8 @@ TRUE_HEADING_SENTENCES = frozenset({"HDT", "THS"})
 PREFERRED_WITHIN_S = 2.0
 #: most prediction sub-steps for one interval (longer intervals take longer steps)
 MAX_SUBSTEPS = 200
+#: thrust (N, both thrusters) below which the boat counts as not driven (at rest in the water)
+REST_THRUST_N = 0.5
 #: times of validity closer than this (s) are the same instant (they are rounded to 1 µs)
 SAME_TIME_S = 1e-7
 
@@ -518,6 +522,7 @@ class EkfNavigator:
         P[IETA, IETA] = cfg.thrust_scale_sigma**2
         P[IEPS, IEPS] = cfg.yaw_mismatch_sigma**2
         P[IPD, IPD] = d2r(cfg.misalignment_sigma_deg) ** 2
+        P[IPS, IPS] = d2r(cfg.misalignment_common_sigma_deg) ** 2
         self._c = c
         #: (time of validity, snapshot before it or None within a group of equal
         #: times of validity, measurement)
@@ -1249,12 +1254,23 @@ class EkfNavigator:
     def _init_speed(self, c: _Core, m: _Meas) -> None:
         """Start the surge speed at the GPS velocity's component along the heading
         (less the current), so that the first velocity update is linearised about the
-        right speed (about u = 0 the crab would all go to the current)."""
+        right speed (about u = 0 the crab would all go to the current); with the
+        thrusters stopped, at rest in the water."""
         x = c.x
         psi = x[IPSI]
-        x[IU] = math.cos(psi) * (m.z1 - x[ICN]) + math.sin(psi) * (m.z2 - x[ICE])
+        if (self._mc is not None and c.t - c.t_cmd <= self._cmd_timeout
+                and abs(c.f1) + abs(c.f2) < REST_THRUST_N
+                and math.hypot(m.z1, m.z2) < self.cfg.rest_max_speed_mps):
+            # no thrust so far and a current's speed over ground: a boat without thrust
+            # moves with the water, so the GPS velocity is the current's (the start of
+            # a mission, from rest; a boat still coasting after a restart goes faster)
+            x[IU] = 0.0
+            su2 = self.cfg.rest_speed_sigma_mps**2
+        else:
+            x[IU] = math.cos(psi) * (m.z1 - x[ICN]) + math.sin(psi) * (m.z2 - x[ICE])
+            su2 = m.r1 + 0.01
         x[IV] = 0.0
-        self._reset_block(c, (IU, IV), (m.r1 + 0.01, self.cfg.sway_sigma_mps**2))
+        self._reset_block(c, (IU, IV), (su2, self.cfg.sway_sigma_mps**2))
         c.vel_init = True
 
     def _init_heading_from_course(self, c: _Core, m: _Meas) -> None:

@@ -127,11 +127,26 @@ class EkfSettings:
                                      "10 %; a misalignment's yaw moment looks alike)",
                                      min=0.0, max=2.0)
     misalignment_sigma_deg: float = spec(2.0, "deg", "1σ prior of the thrusters' "
-                                         "misalignment, common (φ1 + φ2)/2 and differential "
-                                         "(φ1 − φ2)/2: their side force φ1·F1 + φ2·F2 makes the "
-                                         "hull crab (up to ±3° per thruster, set at launch)",
+                                         "differential misalignment (φ1 − φ2)/2: its side "
+                                         "force (φ1 − φ2)/2·(F1 − F2) makes the hull slip in "
+                                         "hard turns (up to ±3° per thruster, set at launch)",
                                          min=0.0, max=30.0)
+    misalignment_common_sigma_deg: float = spec(0.0, "deg", "1σ prior of the common "
+                                                "misalignment (φ1 + φ2)/2, whose side force "
+                                                "makes a steady crab that on a line looks "
+                                                "like a compass bias (0: held at zero; the "
+                                                "bias takes it)", min=0.0, max=30.0)
     yaw_mismatch_walk: float = spec(0.003, "1/√s", "random walk of ε", min=0.0, max=1.0)
+    rest_speed_sigma_mps: float = spec(0.05, "m/s", "1σ of the speed through the water of a "
+                                       "boat whose thrusters are stopped (it drifts with the "
+                                       "water; wind, chop): with the thrust model, the first "
+                                       "GPS velocity then measures the current", min=0.001,
+                                       max=5.0)
+    rest_max_speed_mps: float = spec(0.6, "m/s", "a first GPS velocity with no thrust "
+                                     "applied yet counts as the boat at rest in the water "
+                                     "(drifting with the current) below this speed over "
+                                     "ground; above it, as a boat still coasting", min=0.0,
+                                     max=5.0)
     sway_model_error: float = spec(0.3, "", "relative 1σ of the turn-induced sway a·u·r "
                                    "(hull ±25 %)", min=0.0, max=5.0)
 
