@@ -461,6 +461,7 @@ class EkfNavigator:
         self._q_eta = cfg.thrust_scale_walk**2
         self._q_eps = cfg.yaw_mismatch_walk**2
         self._k_model = cfg.model_accel_error**2 * cfg.model_error_tau_s
+        self._k_lag = cfg.lag_error**2 * cfg.model_error_tau_s
         self._k_sway = cfg.sway_model_error**2
         self._model: _Model | None = None
         self._mc: tuple[float, ...] | None = None  # its constants, for the prediction
@@ -499,8 +500,8 @@ class EkfNavigator:
         md = self._model
         self._mc = None if md is None else (
             md.m, md.m_u, md.m_v, md.i_r, md.x_u, md.x_uu, md.n_r, md.n_rr, md.b, md.arm,
-            md.lag_s, md.sway_a, md.sway_tau_s, self._k_model, self._q_u_model, self._q_r,
-            self._q_eta, self._q_eps)
+            md.lag_s, md.sway_a, md.sway_tau_s, self._k_model, self._k_lag, self._q_u_model,
+            self._q_r, self._q_eta, self._q_eps)
 
     # ------------------------------------------------------------ set-up
     def reset(self) -> None:
@@ -932,7 +933,7 @@ class EkfNavigator:
         u, v, psi, r = x[IU], x[IV], x[IPSI], x[IR]
         mc = self._mc
         if mc is not None and c.t - c.t_cmd <= self._cmd_timeout:
-            (m, m_u, m_v, i_r, x_u, x_uu, n_r, n_rr, b, arm, lag, sway_a, tv, k_mod,
+            (m, m_u, m_v, i_r, x_u, x_uu, n_r, n_rr, b, arm, lag, sway_a, tv, k_mod, k_lag,
              q_u0, q_r0, q_eta, q_eps) = mc
             # thrusts: first-order lag towards f_i(U_i), exact; their mean over the step
             el = math.exp(-dt / lag)
@@ -967,8 +968,10 @@ class EkfNavigator:
             # the yaw moments (hull and inertia, the differential thrust balanced)
             g_u = abs(a_u) + abs(fdif) / m_u
             g_r = (abs(damp) + abs(n_act)) / i_r
-            q_u = (q_u0 + k_mod * g_u * g_u) * dt
-            q_r = (q_r0 + k_mod * g_r * g_r) * dt
+            # the thrust still to come (target − lagged): what a wrong lag gets wrong
+            lag_f = abs(g1) + abs(g2)
+            q_u = (q_u0 + k_mod * g_u * g_u + k_lag * (lag_f / m_u) ** 2) * dt
+            q_r = (q_r0 + k_mod * g_r * g_r + k_lag * (b * lag_f / i_r) ** 2) * dt
             q_eta, q_eps = q_eta * dt, q_eps * dt
             pu, pr = phi_u / m_u, phi_r / i_r
             d_u_v, d_u_r, d_u_eta, d_u_eps = pu * m * r, pu * m * v, pu * xs, pu * eta * fdif
