@@ -61,12 +61,18 @@ straight leg and which, in a hard turn with one thruster in reverse, changes
 the surge thrust too.  What is left
 of the model's error is process noise that grows with the net acceleration
 (``model_accel_error`` of it, over ``model_error_tau_s``: mass and inertia
-±25 %, thrust lag 0.1–0.3 s) and, in yaw, with the size of the moments (the
-damping, and the differential thrust the controller balances), so the filter is
-sure of the model at steady speed on a line and not while the boat
-accelerates or turns: a model error then goes to the yaw rate, which the gyro
-measures, and not to the gyro's bias.  A turn's sway is trusted to
-``sway_model_error``.  Gusts and chop are ``surge_noise_mps`` and
+±25 %) and, in yaw, with the size of the moments (the damping, and the
+differential thrust the controller balances), and with the thrust still to
+come after a command change (``lag_error``: a lag of 0.1–0.3 s against the
+model's), so the filter is sure of the model at steady speed on a line and not
+while the boat accelerates or turns: a model error then goes to the speed and
+the yaw rate, which the GPS and the gyro measure, and not to the slow states
+(biases, current).  A turn's sway is trusted to ``sway_model_error``.
+
+Start from rest: with the thrust model and no thrust applied yet, a first GPS
+velocity slower than ``rest_max_speed_mps`` is taken as the boat drifting with
+the water (u = 0 ± ``rest_speed_sigma_mps``): it measures the current, which
+then tells the compass bias from the crab as the boat speeds up.  Gusts and chop are ``surge_noise_mps`` and
 ``yaw_accel_walk_dps``.  Each step integrates the mean with the exponential
 Euler method (exact for the linear damping; the surge time constant is
 0.2–0.3 s at speed, shorter than a step is long) and the thrust lag exactly.
