@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -182,7 +183,7 @@ def test_heading_on_the_first_leg_from_rest(seed: int) -> None:
     EKF with the thruster commands holds the heading within 1.5° RMS (the filter
     without them, the first estimate's problem case, is several times worse), and its
     covariance is not overconfident (NEES of 5 dof about 5, well under χ²₅'s tail)."""
-    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[1]
     rep = run_scenario(load_scenario(root / RECT, FIRST_LEG, seed)).report
     off = run_scenario(load_scenario(root / RECT, [*FIRST_LEG, "runtime.ekf.thrust_model=false"],
                                      seed)).report

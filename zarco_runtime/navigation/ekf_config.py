@@ -115,7 +115,7 @@ class EkfSettings:
                                     "accelerations (mass and inertia ±25 %, thrust lag "
                                     "0.1–0.3 s): process noise while the boat speeds up, "
                                     "slows down or turns", min=0.0, max=5.0)
-    lag_error: float = spec(1.0, "", "relative 1σ of the thrust lag (0.1–0.3 s about the "
+    lag_error: float = spec(0.5, "", "relative 1σ of the thrust lag (0.1–0.3 s about the "
                             "model's 0.15 s): the thrust still to come after a command "
                             "change is that uncertain", min=0.0, max=5.0)
     model_error_tau_s: float = spec(0.5, "s", "correlation time of that model error (turns "
