@@ -72,10 +72,12 @@ the yaw rate, which the GPS and the gyro measure, and not to the slow states
 Start from rest: with the thrust model and no thrust applied yet, a first GPS
 velocity slower than ``rest_max_speed_mps`` is taken as the boat drifting with
 the water (u = 0 ± ``rest_speed_sigma_mps``): it measures the current, which
-then tells the compass bias from the crab as the boat speeds up.  Gusts and chop are ``surge_noise_mps`` and
-``yaw_accel_walk_dps``.  Each step integrates the mean with the exponential
-Euler method (exact for the linear damping; the surge time constant is
-0.2–0.3 s at speed, shorter than a step is long) and the thrust lag exactly.
+then tells the compass bias from the crab as the boat speeds up.
+
+Gusts and chop are ``surge_noise_mps`` and ``yaw_accel_walk_dps``.  Each step
+integrates the mean with the exponential Euler method (exact for the linear
+damping; the surge time constant is 0.2–0.3 s at speed, shorter than a step is
+long) and the thrust lag exactly.
 
 Without commands (another pilot, a replayed capture, ``thrust_model`` off) the
 surge speed u is a slow random walk (``accel_walk_mps``) and r a random walk
