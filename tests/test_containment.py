@@ -73,7 +73,9 @@ def test_a_parser_that_raises_is_counted_and_the_boat_stops(device: str) -> None
     assert "idle" in _modes(res)[1:]
     fs = _events(res, "failsafe")
     assert fs and fs[0].text.startswith("position_lost" if device == "gps" else "heading_lost")
-    tail = _thrust_after(marks, AT_S + 2.0)
+    # the GPS: dead reckoning until position_lost_s; the compass: at once
+    wait = res.extra["runtime"].cfg.failsafe.position_lost_s if device == "gps" else 0.0
+    tail = _thrust_after(marks, AT_S + wait + 1.0)
     assert tail and all(u == (0.0, 0.0) for u in tail)
 
 

@@ -140,7 +140,7 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     auv_log: list[tuple[float, float, float, float]] = counters.setdefault("auv_log", [])
 
     nav = bus.latest(NavState)
-    nav_err: list[tuple[float, float, float, float]] = counters.setdefault("nav_err", [])
+    nav_err: list[NavError] = counters.setdefault("nav_err", [])
     recording = scn.runtime.record.enabled
 
     def record(t: float) -> None:
@@ -151,8 +151,10 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         if n is not None and n.pos_valid and n.heading_valid:
             # the estimate as the controller uses it: extrapolated to now
             age = t - n.t
-            nav_err.append((t, n.x_m + n.vn_mps * age - s.x_m, n.y_m + n.ve_mps * age - s.y_m,
-                            math.remainder(n.psi_rad + n.r_rps * age - s.psi_rad, math.tau)))
+            nav_err.append(NavError(
+                t, n.x_m + n.vn_mps * age - s.x_m, n.y_m + n.ve_mps * age - s.y_m,
+                math.remainder(n.psi_rad + n.r_rps * age - s.psi_rad, math.tau),
+                n.vn_mps - s.vn_mps, n.ve_mps - s.ve_mps, g.leg if g else 0, n.cov))
         log.add(t, s.x_m, s.y_m, s.psi_rad, g.leg if g else 0,
                 c.u1 if c else 0.0, c.u2 if c else 0.0)
         if acoustics is not None:
@@ -221,18 +223,68 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
 
 #: navigation errors are counted from this time (s): the first fixes and headings
 NAV_SETTLE_S = 10.0
+#: the heading error is counted from this time (s): from the first valid estimate on
+NAV_HEADING_SETTLE_S = 0.0
 
 
-def nav_figures(err: list[tuple[float, float, float, float]]) -> dict[str, Any]:
-    """RMS of the navigation estimate (as the controller extrapolates it) against the
-    simulator's truth from ``NAV_SETTLE_S``: horizontal position (m), heading (deg)."""
-    e = [x for x in err if x[0] >= NAV_SETTLE_S]
-    if not e:
-        return {"nav_position_rms_m": math.nan, "nav_heading_rms_deg": math.nan}
+@dataclass(slots=True)
+class NavError:
+    """Estimate − truth at one true-track sample: time (s), position north/east (m),
+    heading (rad, wrapped), ground velocity north/east (m/s), the active leg, and the
+    estimate's covariance of (x, y, vn, ve, ψ) (NavState.cov)."""
+
+    t: float
+    ex: float
+    ey: float
+    epsi: float
+    evn: float
+    eve: float
+    leg: int
+    cov: tuple[float, ...]
+
+
+def _rms(xs: list[float]) -> float:
+    return math.sqrt(sum(x * x for x in xs) / len(xs)) if xs else math.nan
+
+
+def nees5(e: NavError) -> float:
+    """Normalised estimation error squared of (x, y, vn, ve, ψ) (χ²₅ when consistent)."""
+    import numpy as np
+
+    if len(e.cov) != 25:
+        return math.nan
+    P = np.array(e.cov).reshape(5, 5)
+    v = np.array([e.ex, e.ey, e.evn, e.eve, e.epsi])
+    try:
+        return float(v @ np.linalg.solve(P, v))
+    except np.linalg.LinAlgError:
+        return math.inf
+
+
+def nav_figures(err: list[NavError]) -> dict[str, Any]:
+    """The navigation estimate (as the controller extrapolates it) against the
+    simulator's truth: horizontal position RMS (m) from ``NAV_SETTLE_S``; heading
+    RMS (deg) over the whole run and over the first leg, from
+    ``NAV_HEADING_SETTLE_S``; NEES of (x, y, vn, ve, ψ) (mean over samples 1 s
+    apart from ``NAV_SETTLE_S``; 5 when the covariance is honest) and the share of
+    its samples above χ²₅'s 99 % quantile (0.01 when honest)."""
+    e = [x for x in err if x.t >= NAV_SETTLE_S]
+    h = [x for x in err if x.t >= NAV_HEADING_SETTLE_S]
+    nees = [nees5(x) for x in e[::10]]
     return {
-        "nav_position_rms_m": math.sqrt(sum(a * a + b * b for _, a, b, _ in e) / len(e)),
-        "nav_heading_rms_deg": math.degrees(math.sqrt(sum(p * p for *_, p in e) / len(e))),
+        "nav_position_rms_m": _rms([math.hypot(x.ex, x.ey) for x in e]),
+        "nav_heading_rms_deg": math.degrees(_rms([x.epsi for x in h])),
+        "nav_heading_first_leg_rms_deg": math.degrees(_rms([x.epsi for x in h
+                                                            if x.leg == 0])),
+        "nav_heading_max_deg": math.degrees(max((abs(x.epsi) for x in h), default=math.nan)),
+        "nav_nees_mean": sum(nees) / len(nees) if nees else math.nan,
+        "nav_nees_above_99": (sum(n > CHI2_5_99 for n in nees) / len(nees) if nees
+                              else math.nan),
     }
+
+
+#: χ² with 5 degrees of freedom, 99 % quantile
+CHI2_5_99 = 15.086
 
 
 def command_step_rms(log: TrackLog) -> float:

@@ -7,7 +7,9 @@
   (reported: mean RMS, worst RMS, worst p95);
 * the same with the harsher world (current 0.4 m/s, φ = ±3°, Δf = 10 %);
 * speed: the rectangle at 1.0 m/s with every NMEA byte through the drivers
-  (median speed-up over the seeds) and one simulated hour (12 laps) timed;
+  (median speed-up over the seeds) and one simulated hour (12 laps) timed; then
+  side by side with a checkout of ``--base-rev`` (with the EKF, and with its
+  default estimator), alternating in this run, and the profile shares;
 * determinism: two runs with the same seed give identical reports.
 
 Ends by printing one JSON line of its figures.
@@ -38,6 +40,8 @@ HARSH = [
     "world.thrusters.mismatch=0.10",
 ]
 WALL_KEYS = ("wall_seconds", "speedup")
+#: the code before the EKF became the default (speed comparison)
+BASE_REV = "7cfb0fbf819266b56547384332a0817006a234df"
 
 
 def run(speed: float, seed: int, extra: list[str] | None = None) -> dict[str, Any]:
@@ -62,6 +66,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--quick", action="store_true", help="skip the simulated hour")
+    ap.add_argument("--base-rev", default=BASE_REV, help="the code to compare the speed with")
+    ap.add_argument("--rounds", type=int, default=3, help="speed runs per checkout")
     args = ap.parse_args()
     out: dict[str, Any] = {"bench": "lines", "seeds": args.seeds}
     speedups: list[float] = []
@@ -103,7 +109,34 @@ def main() -> None:
     print(f"speed-up (1.0 m/s, median of {len(speedups)}): {out['speedup']}×; "
           f"one simulated hour: {out['sim_hour_wall_s']} s wall; "
           f"deterministic: {out['deterministic']}", file=sys.stderr)
+    out.update(speed_against_base(args.base_rev, args.rounds))
     print(json.dumps(out))
+
+
+def speed_against_base(rev: str, rounds: int) -> dict[str, Any]:
+    """The rectangle at 1.0 m/s with this code (EKF) against a checkout of ``rev``
+    with the EKF and with its default estimator, alternating in this run; and where
+    this code's time goes (``zarco_tools.sim_profile``)."""
+    from zarco_tools.sim_profile import checkout, profile_call, speed_side_by_side
+
+    ov = ["mission.speed_mps=1.0"]
+    ekf = ["runtime.navigation.estimator=ekf"]
+    with checkout(ROOT, rev) as base:
+        sp = speed_side_by_side({"ekf": (ROOT, RECT, ov + ekf), "base_ekf": (base, RECT, ov + ekf),
+                                 "base_default": (base, RECT, ov)}, rounds,
+                                progress=lambda m: print(m, file=sys.stderr, flush=True))
+    _r, shares, n, _w = profile_call(run_scenario, load_scenario(RECT, ov, 1))
+    print("profile: " + ", ".join(f"{k} {v:.0%}" for k, v in shares.items()), file=sys.stderr)
+    return {"base_rev": rev,
+            "speedup_ekf_side_by_side": sp["ekf"]["speedup"],
+            "speedup_base_ekf": sp["base_ekf"]["speedup"],
+            "speedup_base_default": sp["base_default"]["speedup"],
+            "speed_ratio_vs_base_ekf": round(sp["ekf"]["speedup"] / sp["base_ekf"]["speedup"], 3),
+            "speed_ratio_vs_base_default": round(sp["ekf"]["speedup"]
+                                                 / sp["base_default"]["speedup"], 3),
+            "cpu_speed_ratio_vs_base_ekf": round(sp["ekf"]["cpu_speedup"]
+                                                 / sp["base_ekf"]["cpu_speedup"], 3),
+            "profile_shares": shares, "profile_samples": n}
 
 
 if __name__ == "__main__":

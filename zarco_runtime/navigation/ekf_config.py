@@ -92,13 +92,71 @@ class EkfSettings:
                                       "bias ≈ 0.5°/s, DESIGN.md §4)", min=0.0, max=100.0)
     gyro_bias_walk_dps: float = spec(0.002, "deg/s/√s", "random walk of the gyro bias",
                                      min=0.0, max=10.0)
-    yaw_accel_walk_dps: float = spec(10.0, "deg/s/√s", "random walk of the yaw rate state "
-                                     "(how fast r may change between measurements)",
+    yaw_accel_walk_dps: float = spec(10.0, "deg/s/√s", "random forcing of the yaw rate "
+                                     "(how fast r may change between measurements beyond the "
+                                     "model's: yaw gusts of 2 N m on Zarco ≈ 7°/s/√s)",
                                      min=0.01, max=1e4)
+
+    # ------------------------------------------- vessel model (thrusters)
+    thrust_model: bool = spec(True, "", "predict surge and yaw from the thruster commands "
+                              "(ThrusterCommand) through the vessel model and the thruster "
+                              "maps while commands arrive; otherwise (or without commands) "
+                              "surge speed and yaw rate are random walks")
+    command_timeout_s: float = spec(0.5, "s", "thruster commands older than this stop being "
+                                    "a prediction input", min=0.05, max=10.0)
+    yaw_damping_quad: float = spec(-250.0, "N m s²", "quadratic yaw damping N_|r|r of the "
+                                   "hull for the prediction (the runtime's [vessel] model, "
+                                   "which control designs its gains on, is linear in yaw; "
+                                   "DESIGN.md §4: −250)", min=-1e5, max=0.0)
+    surge_noise_mps: float = spec(0.07, "m/s/√s", "random forcing of the surge speed about "
+                                  "the model's (gusts, chop: 5 N on Zarco ≈ 0.026 m/s about "
+                                  "a 0.26 s surge time constant)", min=1e-4, max=10.0)
+    model_accel_error: float = spec(0.3, "", "relative 1σ of the model's net surge and yaw "
+                                    "accelerations (mass and inertia ±25 %, thrust lag "
+                                    "0.1–0.3 s): process noise while the boat speeds up, "
+                                    "slows down or turns", min=0.0, max=5.0)
+    lag_error: float = spec(0.5, "", "relative 1σ of the thrust lag (0.1–0.3 s about the "
+                            "model's 0.15 s): the thrust still to come after a command "
+                            "change is that uncertain", min=0.0, max=5.0)
+    model_error_tau_s: float = spec(0.5, "s", "correlation time of that model error (turns "
+                                    "its 1σ into a noise density)", min=0.01, max=10.0)
+    thrust_scale_sigma: float = spec(0.25, "", "1σ prior of the thrust/drag scale η (the "
+                                     "model's thrust is η·(F1 + F2): hull drag ±25 %, thrust "
+                                     "curve ±15 %)", min=0.0, max=2.0)
+    thrust_scale_walk: float = spec(0.003, "1/√s", "random walk of η (fouling, payload, "
+                                    "sea state)", min=0.0, max=1.0)
+    yaw_mismatch_sigma: float = spec(0.1, "", "1σ prior of the thruster mismatch ε (the "
+                                     "model's thrusts are (1 + ε) f1 and (1 − ε) f2: Δf up to "
+                                     "10 %; a misalignment's yaw moment looks alike)",
+                                     min=0.0, max=2.0)
+    misalignment_sigma_deg: float = spec(2.0, "deg", "1σ prior of the thrusters' "
+                                         "differential misalignment (φ1 − φ2)/2: its side "
+                                         "force (φ1 − φ2)/2·(F1 − F2) makes the hull slip in "
+                                         "hard turns (up to ±3° per thruster, set at launch)",
+                                         min=0.0, max=30.0)
+    misalignment_common_sigma_deg: float = spec(0.0, "deg", "1σ prior of the common "
+                                                "misalignment (φ1 + φ2)/2, whose side force "
+                                                "makes a steady crab that on a line looks "
+                                                "like a compass bias (0: held at zero; the "
+                                                "bias takes it)", min=0.0, max=30.0)
+    yaw_mismatch_walk: float = spec(0.003, "1/√s", "random walk of ε", min=0.0, max=1.0)
+    rest_speed_sigma_mps: float = spec(0.05, "m/s", "1σ of the speed through the water of a "
+                                       "boat whose thrusters are stopped (it drifts with the "
+                                       "water; wind, chop): with the thrust model, the first "
+                                       "GPS velocity then measures the current", min=0.001,
+                                       max=5.0)
+    rest_max_speed_mps: float = spec(0.6, "m/s", "a first GPS velocity with no thrust "
+                                     "applied yet counts as the boat at rest in the water "
+                                     "(drifting with the current) below this speed over "
+                                     "ground; above it, as a boat still coasting", min=0.0,
+                                     max=5.0)
+    sway_model_error: float = spec(0.3, "", "relative 1σ of the turn-induced sway a·u·r "
+                                   "(hull ±25 %)", min=0.0, max=5.0)
 
     # ------------------------------------------------- motion / current
     accel_walk_mps: float = spec(0.01, "m/s/√s", "random walk of the surge speed through the "
-                                 "water (speed changes)", min=1e-4, max=100.0)
+                                 "water without the thrust model (speed changes)", min=1e-4,
+                                 max=100.0)
     max_accel_mps2: float = spec(5.0, "m/s²", "a GPS velocity beyond its gate but within "
                                  "this acceleration of the last one is a manoeuvre: the speed "
                                  "and position variances are opened and it is fused (250 N on "
@@ -107,10 +165,12 @@ class EkfSettings:
                                  "water about its turn-induced value (gusts, chop)",
                                  min=1e-4, max=10.0)
     sway_tau_s: float = spec(1.0, "s", "sway time constant (m − Y_v')/(−Y_v): 112.5/112.5 "
-                             "for Zarco", min=0.05, max=60.0)
+                             "for Zarco (with a vessel model, taken from it)", min=0.05,
+                             max=60.0)
     sway_coupling: float = spec(0.4, "", "sway response to a turn, v' = −a·u·r − v/τ: "
                                 "a = m/(m − Y_v') = 45/112.5 for Zarco (steady sideslip "
-                                "v = −a·τ·u·r)", min=0.0, max=1.0)
+                                "v = −a·τ·u·r; with a vessel model, taken from it)",
+                                min=0.0, max=1.0)
     estimate_current: bool = spec(True, "", "estimate a constant water current (observable "
                                   "from the crab angle over different headings)")
     current_sigma_mps: float = spec(0.3, "m/s", "1σ prior of each current component "

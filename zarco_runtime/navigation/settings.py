@@ -1,4 +1,4 @@
-"""Settings of the navigation estimator's first estimate (``[navigation]``)."""
+"""Settings of navigation (``[navigation]``): which estimator, and the first estimate's."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ class Navigation:
     first estimate (per-axis constant-velocity filter on GPS, and a complementary
     filter of compass heading with the gyro rate; the settings below)."""
 
-    estimator: str = spec("simple", "", "which estimator feeds the controller (the EKF is "
-                          "complete but costs ~40 % of the simulation speed; see issue 5)",
-                          choices=["ekf", "simple"])
+    estimator: str = spec("ekf", "", "which estimator feeds the controller: the EKF "
+                          "(settings in [ekf]), or the first estimate kept as a fallback "
+                          "(settings below)", choices=["ekf", "simple"])
 
     accel_psd: float = spec(0.02, "m²/s³", "acceleration noise density of the "
                             "constant-velocity position filter", min=1e-6, max=100.0)

@@ -1,4 +1,4 @@
-"""First navigation estimate (good enough for control; issue 5 replaces it).
+"""First navigation estimate: the fallback behind the EKF (``navigation.estimator = "simple"``).
 
 * Position and ground velocity: per NED axis, a two-state constant-velocity
   Kalman filter fed with GPS positions (σ from the fix type) and with the
@@ -120,15 +120,16 @@ class SimpleNavigator:
             self.e.predict(dt, self.cfg.accel_psd)
             self.t_pos = t
 
-    def on_fix(self, m: GpsFix) -> None:
+    def on_fix(self, m: GpsFix) -> bool:
+        """A GPS position; False when it repeats one already taken (nothing changed)."""
         if m.lat_deg is None or m.lon_deg is None or m.fix < self.min_fix:
             self.fix = m.fix if m.lat_deg is None or m.fix < self.min_fix else self.fix
-            return
+            return True
         if not (math.isfinite(m.lat_deg) and math.isfinite(m.lon_deg)):
             self.rejected += 1
-            return
+            return True
         if m.utc_s is not None and m.utc_s == self.fix_utc_s and m.t - (self.t_fix or 0.0) < 0.5:
-            return  # GGA and RMC of one epoch carry the same measurement: use it once
+            return False  # GGA and RMC of one epoch carry the same measurement: use it once
         self.fix_utc_s = m.utc_s
         x, y = self._geo.to_ned(m.lat_deg, m.lon_deg)
         sigma = FIX_SIGMA_M.get(m.fix, 2.0)
@@ -144,6 +145,7 @@ class SimpleNavigator:
         self.t_fix = m.t
         self.fix = m.fix
         self.lat, self.lon = m.lat_deg, m.lon_deg
+        return True
 
     def on_velocity(self, m: GpsVelocity) -> None:
         if self.t_fix is None or m.cog_rad is None or not math.isfinite(m.sog_mps):

@@ -61,9 +61,11 @@ from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import (
     FixQuality,
     GpsFix,
+    GpsVelocity,
     Heading,
+    NavState,
 )
-from zarco_runtime.navigation.ekf import KIND_NAMES, EkfNavigator
+from zarco_runtime.navigation.ekf import KIND_NAMES, EkfNavigator, EkfStatus
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_tools.decode import is_compass_type
 from zarco_tools.replay import sentence_time
@@ -207,6 +209,152 @@ def _r(x: float | None, nd: int) -> float | None:
     return None if x is None or not math.isfinite(x) else round(x, nd)
 
 
+#: 1σ of an angle that is uniformly unknown on the circle (deg): 180/√3; a heading
+#: σ at or beyond it says nothing, and is reported as not estimated
+ANGLE_UNKNOWN_DEG = 180.0 / math.sqrt(3.0)
+#: a state whose σ is still this fraction of its prior (or more) was not estimated:
+#: nothing in the capture informed it
+PRIOR_SHARE = 0.9
+
+
+def _estimate(cfg: EkfSettings, st: NavState, status: EkfStatus, counters: dict[str, int],
+              pos_ever: bool, hdg_ever: bool, cap: Capture) -> dict[str, Any]:
+    """The estimate at the end of a capture, each value with its 1σ, or None with the
+    reason it could not be estimated (``not_estimated``: quantity → reason)."""
+    c = counters.get
+    s, sg = status.state, status.sigma
+    why: dict[str, str] = {}
+    n_fix = sum(1 for m in cap.messages if isinstance(m, GpsFix) and m.fix > FixQuality.NONE
+                and m.lat_deg is not None)
+    n_vel = c("vel_ok", 0) + c("sog_ok", 0) + c("vel_manoeuvre", 0)
+    compass = c("compass_ok", 0) > 0
+    true_hdg = c("true_heading_ok", 0) > 0
+    gyro = c("rot_ok", 0) > 0
+    course = c("heading_from_course", 0) > 0
+    # ---- position
+    if not pos_ever:
+        if n_fix == 0:
+            why["position"] = "no GPS fix in the capture"
+        elif c("pos_below_min_fix", 0):
+            why["position"] = (f"no fix as good as ekf.min_fix = {cfg.min_fix!r} "
+                               f"({c('pos_below_min_fix', 0)} worse ones)")
+        else:
+            why["position"] = (f"never valid: its 1σ stayed above ekf.pos_sigma_max_m = "
+                               f"{cfg.pos_sigma_max_m:g} m")
+    elif not status.pos_valid:
+        why["position_at_end"] = (
+            "not valid at the end: " + (
+                f"the last fused fix is {status.gps_age_s:.1f} s old (dead reckoning ends "
+                f"after ekf.dr_max_s = {cfg.dr_max_s:g} s)" if status.gps_age_s > cfg.dr_max_s
+                else f"its 1σ {status.pos_sigma_m:.1f} m is above ekf.pos_sigma_max_m = "
+                     f"{cfg.pos_sigma_max_m:g} m") + "; the position shown is the last "
+            "estimate")
+    pos = pos_ever
+    # ---- heading
+    hdg_sigma = status.heading_sigma_deg
+    heading = True
+    if not (compass or true_hdg or course):
+        heading = False
+        why["heading"] = ("no compass or true heading (HDT/THS) in the capture, and the GPS "
+                          "course could not stand in: the boat never moved at "
+                          f"≥ {cfg.course_init_speed_mps:g} m/s (ekf.course_init_speed_mps)")
+    elif not hdg_sigma < ANGLE_UNKNOWN_DEG:
+        heading = False
+        why["heading"] = (f"lost: its 1σ grew to {hdg_sigma:.0f}° (≥ {ANGLE_UNKNOWN_DEG:.0f}°, "
+                          "a heading anywhere on the circle) since the last heading")
+    elif course and not (compass or true_hdg):
+        why["heading_source"] = ("from the GPS course (no heading sensor): the direction of "
+                                 "travel, not of the bow; flagged not valid")
+    # ---- compass bias
+    bc_prior = math.radians(cfg.compass_bias_sigma_deg)
+    compass_bias = compass and sg["compass_bias_rad"] < PRIOR_SHARE * bc_prior
+    if not compass:
+        why["compass_bias"] = ("no compass heading in the capture" + (
+            " (its headings are true headings, which have no bias)" if true_hdg else ""))
+    elif not compass_bias:
+        why["compass_bias"] = (
+            "not observable: a compass bias shows against a true heading (HDT/THS from "
+            "ekf.true_heading_sources) or as the angle between heading and GPS course while "
+            "the boat moves and turns; " + ("the boat did not move or turn enough" if n_vel
+                                            else "the capture has no GPS velocity") +
+            (" and no true heading" if not true_hdg else ""))
+    # ---- gyro bias and yaw rate
+    bg_prior = math.radians(cfg.gyro_bias_sigma_dps)
+    gyro_bias = gyro and sg["gyro_bias_rps"] < PRIOR_SHARE * bg_prior
+    if not gyro:
+        why["gyro_bias"] = "no rate of turn (ROT) in the capture"
+    elif not gyro_bias:
+        why["gyro_bias"] = ("not observable: the gyro bias is learned against the change of "
+                            "a heading over time, and the capture's headings are too few or "
+                            "too short")
+    yaw_rate = gyro or ((compass or true_hdg) and heading)
+    if not yaw_rate:
+        why["yaw_rate"] = "no rate of turn (ROT) and no heading sensor in the capture"
+    # ---- speed over ground
+    vcov = st.cov
+    speed = math.hypot(st.vn_mps, st.ve_mps)
+    speed_sigma = math.nan
+    if len(vcov) == 25:
+        pvv = max(vcov[12], vcov[18])  # the worse of vn, ve
+        speed_sigma = math.sqrt(max(pvv, 0.0))
+    speed_ok = (n_vel > 0 or c("pos_ok", 0) >= 2) and speed_sigma < PRIOR_SHARE * 2.0
+    n_vel_msgs = sum(1 for m in cap.messages if isinstance(m, GpsVelocity))
+    if not speed_ok:
+        if n_vel_msgs and not (compass or true_hdg or course):
+            why["speed"] = ("the GPS velocity is fused as a speed through the water along "
+                            "a heading, and there is none (see heading); too few fused fixes "
+                            "to tell a speed from positions")
+        elif n_vel == 0 and c("pos_ok", 0) < 2:
+            why["speed"] = "no GPS velocity (RMC/VTG) and fewer than two fused fixes"
+        else:
+            why["speed"] = f"its 1σ is still {speed_sigma:.1f} m/s"
+    # ---- current
+    cur_prior = cfg.current_sigma_mps
+    cur_sigma = max(s_ for s_ in (sg["current_n_mps"], sg["current_e_mps"]))
+    current = (cfg.estimate_current and cur_sigma < PRIOR_SHARE * cur_prior and heading
+               and (compass or true_hdg))
+    if not cfg.estimate_current:
+        why["current"] = "not estimated (ekf.estimate_current = false)"
+    elif not current:
+        why["current"] = ("not observable: the current is the GPS velocity less the velocity "
+                          "through the water, which needs a heading sensor and a boat that "
+                          "moves and turns; " + ("there is no heading sensor" if not
+                                                  (compass or true_hdg) else
+                                                  "the capture does not show enough of that"))
+
+
+    def val(ok: bool, x: float, nd: int) -> float | None:
+        return _r(x, nd) if ok else None
+
+    d = math.degrees
+    return {
+        "pos_valid": status.pos_valid, "heading_valid": status.heading_valid,
+        "pos_ever_valid": pos_ever, "heading_ever_valid": hdg_ever,
+        "fix": st.fix.label,
+        "lat_deg": val(pos, st.lat_deg, 8),
+        "lon_deg": val(pos, st.lon_deg, 8),
+        "x_m": val(pos, st.x_m, 3),
+        "y_m": val(pos, st.y_m, 3),
+        "pos_sigma_m": val(pos, status.pos_sigma_m, 3),
+        "gps_age_s": _r(status.gps_age_s, 3),
+        "heading_deg": val(heading, d(st.psi_rad) % 360.0, 3),
+        "heading_sigma_deg": val(heading, hdg_sigma, 3),
+        "compass_bias_deg": val(compass_bias, d(s["compass_bias_rad"]), 3),
+        "compass_bias_sigma_deg": val(compass_bias, d(sg["compass_bias_rad"]), 3),
+        "gyro_bias_dps": val(gyro_bias, d(s["gyro_bias_rps"]), 5),
+        "gyro_bias_sigma_dps": val(gyro_bias, d(sg["gyro_bias_rps"]), 5),
+        "yaw_rate_dps": val(yaw_rate, d(st.r_rps), 5),
+        "yaw_rate_sigma_dps": val(yaw_rate, d(sg["r_rps"]), 5),
+        "speed_mps": val(speed_ok, speed, 3),
+        "speed_sigma_mps": val(speed_ok, speed_sigma, 3),
+        "current_n_mps": val(current, s["current_n_mps"], 3),
+        "current_e_mps": val(current, s["current_e_mps"], 3),
+        "current_sigma_mps": val(current, cur_sigma, 3),
+        "compass_faults": list(status.compass_faults),
+        "not_estimated": why,
+    }
+
+
 def capture_report(path: Path, variation_deg: float | None = None,
                    line_rate_hz: float = 5.0) -> dict[str, Any]:
     """Run the navigation EKF over the NMEA capture at ``path``; what it estimated.
@@ -281,30 +429,7 @@ def capture_report(path: Path, variation_deg: float | None = None,
         c = counters.get
         fused = (c("pos_ok", 0) + c("pos_manoeuvre", 0) + c("resets_pos", 0)
                  + (1 if math.isfinite(status.gps_age_s) else 0))
-        s, sg = status.state, status.sigma
-        pos = pos_ever
-        estimate = {
-            "pos_valid": status.pos_valid, "heading_valid": status.heading_valid,
-            "pos_ever_valid": pos_ever, "heading_ever_valid": hdg_ever,
-            "fix": st.fix.label,
-            "lat_deg": _r(st.lat_deg, 8) if pos else None,
-            "lon_deg": _r(st.lon_deg, 8) if pos else None,
-            "x_m": _r(st.x_m, 3) if pos else None,
-            "y_m": _r(st.y_m, 3) if pos else None,
-            "pos_sigma_m": _r(status.pos_sigma_m, 3) if pos else None,
-            "gps_age_s": _r(status.gps_age_s, 3),
-            "heading_deg": _r(math.degrees(st.psi_rad) % 360.0, 3),
-            "heading_sigma_deg": _r(status.heading_sigma_deg, 3),
-            "compass_bias_deg": _r(math.degrees(s["compass_bias_rad"]), 3),
-            "compass_bias_sigma_deg": _r(math.degrees(sg["compass_bias_rad"]), 3),
-            "gyro_bias_dps": _r(math.degrees(s["gyro_bias_rps"]), 5),
-            "gyro_bias_sigma_dps": _r(math.degrees(sg["gyro_bias_rps"]), 5),
-            "yaw_rate_dps": _r(math.degrees(st.r_rps), 5),
-            "speed_mps": _r(math.hypot(st.vn_mps, st.ve_mps), 3),
-            "current_n_mps": _r(s["current_n_mps"], 3),
-            "current_e_mps": _r(s["current_e_mps"], 3),
-            "compass_faults": list(status.compass_faults),
-        }
+        estimate = _estimate(nav.cfg, st, status, counters, pos_ever, hdg_ever, cap)
     except Exception as exc:  # as above: reported, not raised
         errors.append(f"final state at t={t_end:.3f} s: {type(exc).__name__}: {exc}")
     rejections = {k: counters.get(f"{k}_rejected", 0) for k in KIND_NAMES}
@@ -360,6 +485,8 @@ def report_table(rep: dict[str, Any]) -> str:
            if origin["from"] == "first_fix" else "0, 0 (no fix in the capture)")
     if var["magnetic_uncorrected"]:
         ref_txt = "magnetic, NOT corrected (no variation)"
+    elif e and "heading_source" in e.get("not_estimated", {}):
+        ref_txt = "course over ground"
     elif var["source"] == "none":
         ref_txt = "true"
     else:
@@ -374,21 +501,40 @@ def report_table(rep: dict[str, Any]) -> str:
         ("origin", org),
     ]
     if e:
+        why = e.get("not_estimated", {})
+
+        def pm(key: str, fmt: str, unit: str, sig: str, sfmt: str, what: str) -> str:
+            if e[key] is None:
+                return f"not estimated: {why.get(what, 'no information')}"
+            return f"{e[key]:{fmt}}{unit} ± {e[sig]:{sfmt}}{unit}"
+
         pos = "valid" if e["pos_valid"] else "not valid"
         if e["lat_deg"] is not None:
             pos += (f"  {e['lat_deg']:.7f}, {e['lon_deg']:.7f}  x {e['x_m']:.2f} m "
                     f"y {e['y_m']:.2f} m  σ {e['pos_sigma_m']:.2f} m  ({e['fix']})")
+        else:
+            pos += f": {why.get('position', 'no information')}"
+        if "position_at_end" in why:
+            pos += f"; {why['position_at_end']}"
+        hdg = pm("heading_deg", ".2f", "°", "heading_sigma_deg", ".2f", "heading")
+        if e["heading_deg"] is not None:
+            hdg += f" {'valid' if e['heading_valid'] else 'not valid'}, {ref_txt}"
+            if "heading_source" in why:
+                hdg += f"; {why['heading_source']}"
+        cur = (f"north {e['current_n_mps']:+.3f} m/s, east {e['current_e_mps']:+.3f} m/s "
+               f"± {e['current_sigma_mps']:.3f} m/s" if e["current_n_mps"] is not None
+               else f"not estimated: {why.get('current', 'no information')}")
         rows += [
             ("position", pos),
-            ("heading", f"{_num(e['heading_deg'], '.2f', '°')} ± "
-                        f"{_num(e['heading_sigma_deg'], '.2f', '°')} "
-                        f"{'valid' if e['heading_valid'] else 'not valid'}, {ref_txt}"),
-            ("biases", f"compass {_num(e['compass_bias_deg'], '+.3f', '°')} ± "
-                       f"{_num(e['compass_bias_sigma_deg'], '.3f', '°')}, gyro "
-                       f"{_num(e['gyro_bias_dps'], '+.5f', '°/s')} ± "
-                       f"{_num(e['gyro_bias_sigma_dps'], '.5f', '°/s')}"),
-            ("motion", f"yaw rate {_num(e['yaw_rate_dps'], '+.5f', '°/s')}, speed "
-                       f"{_num(e['speed_mps'], '.3f', ' m/s')}"),
+            ("heading", hdg),
+            ("compass bias", pm("compass_bias_deg", "+.3f", "°", "compass_bias_sigma_deg",
+                                ".3f", "compass_bias")),
+            ("gyro bias", pm("gyro_bias_dps", "+.5f", "°/s", "gyro_bias_sigma_dps", ".5f",
+                             "gyro_bias")),
+            ("yaw rate", pm("yaw_rate_dps", "+.4f", "°/s", "yaw_rate_sigma_dps", ".4f",
+                            "yaw_rate")),
+            ("speed", pm("speed_mps", ".3f", " m/s", "speed_sigma_mps", ".3f", "speed")),
+            ("current", cur),
         ]
     rows += [
         ("gates", f"rejected {rep['gate_rejections']['total']}, resets "

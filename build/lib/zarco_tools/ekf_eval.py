@@ -4,7 +4,8 @@
 
 Drives :class:`drivers.sim.world.SimWorld` directly (no runtime, no clock):
 every NMEA byte the simulated GPS and compass emit goes through the real
-framer and parsers into :class:`~zarco_runtime.navigation.ekf.EkfNavigator`.
+framer and parsers into :class:`~zarco_runtime.navigation.ekf.EkfNavigator`,
+and the pilot's thruster commands are its prediction input (``Case.commands``).
 The boat follows waypoints with a simple line-of-sight pilot (heading hold +
 speed hold) that reads either the truth (default: the estimator is then not in
 the loop) or the estimate (``control_on="nav"``, for the fix-jump figure).
@@ -54,7 +55,9 @@ from drivers.nmea import NmeaError, NmeaFramer
 from drivers.sim.params import WorldParams
 from drivers.sim.world import SimWorld
 from zarco_core.geodesy import LocalFrame
+from zarco_core.messages import ThrusterCommand
 from zarco_core.thruster_map import ThrusterMap
+from zarco_core.vessel import VesselModel
 from zarco_runtime.navigation.ekf import EkfNavigator
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.settings import DEFAULT_TABLE_F, DEFAULT_TABLE_U
@@ -98,6 +101,9 @@ class Case:
     #: called with (message, truth time) before delivery: return the message to
     #: deliver (possibly altered) or None to drop it (fault injection in tests)
     tamper: Callable[[Any, float], Any | None] | None = None
+    #: the pilot's thruster commands are the filter's prediction input (as the
+    #: controller's are on the boat); False: the filter without them
+    commands: bool = True
 
 
 @dataclass(slots=True)
@@ -226,6 +232,9 @@ def run(case: Case) -> Result:
         setattr(cfg, k, v)
     frame = LocalFrame(params.origin_lat_deg, params.origin_lon_deg)
     nav = EkfNavigator(cfg, frame)
+    if case.commands:
+        tmap = ThrusterMap.from_table(DEFAULT_TABLE_U, DEFAULT_TABLE_F)
+        nav.set_vessel(VesselModel(), tmap, tmap)
     pilot = Pilot(case.waypoints, case.speed_mps, case.circle_s)
     fg, fc = NmeaFramer(), NmeaFramer()
     queue: list[tuple[float, int, Any]] = []
@@ -286,6 +295,8 @@ def run(case: Case) -> Result:
                 u1, u2 = pilot.command(t, truth.x_m, truth.y_m, truth.psi_rad, truth.u_mps,
                                        truth.r_rps)
             world.command(t, u1, u2)
+            if case.commands:
+                nav.on_command(ThrusterCommand(t, u1, u2))
             e = (st.x_m - truth.x_m, st.y_m - truth.y_m, st.vn_mps - truth.vn_mps,
                  st.ve_mps - truth.ve_mps, math.remainder(st.psi_rad - truth.psi_rad, math.tau))
             sig = tuple(math.sqrt(max(st.cov[i * 6], 0.0)) for i in range(5))
