@@ -9,8 +9,8 @@ reassembly (a repeated fragment of the current block is ignored; a fragment of
 another block, or a second copy of an index with other bytes, drops what was
 gathered) with one addition: QGroundControl sends a block of exactly 180, 360
 or 540 bytes as full fragments with no empty one after them, so a gathered run
-of full fragments 0..k−1 is passed on when the next block begins, or after
-``flush_s`` without more fragments.  Nothing here checks the RTCM3 framing:
+of full fragments 0..k−1 is passed on when the next block (another sequence
+number) begins, or after ``flush_s`` without more fragments.  Nothing here checks the RTCM3 framing:
 every corrections source goes through the GPS driver's CRC-24Q filter, which
 drops whatever is not a whole, valid frame.
 """
@@ -72,12 +72,13 @@ class RtcmReassembler:
         self.block: _Block | None = None
         self.counters = RtcmCounters()
 
-    def _close(self) -> list[bytes]:
-        """Drop the block being gathered, passing on a complete run of full fragments."""
+    def _close(self, flush: bool = True) -> list[bytes]:
+        """Drop the block being gathered, passing on (with ``flush``) a complete run
+        of full fragments."""
         b, self.block = self.block, None
         if b is None:
             return []
-        run = b.full_run()
+        run = b.full_run() if flush else None
         if run is not None:
             return [run]
         self.counters.fragments_dropped += len(b.parts)
@@ -102,8 +103,11 @@ class RtcmReassembler:
             if b.sequence == seq and seen is not None and seen == data:
                 c.duplicates += 1
                 return []
-            if b.sequence != seq or seen is not None:
+            if b.sequence != seq:  # the next block: the last one ends here
                 out += self._close()
+                b = None
+            elif seen is not None:  # the same index again, other bytes: conflict
+                out += self._close(flush=False)
                 b = None
         if b is None:
             b = self.block = _Block(seq)
