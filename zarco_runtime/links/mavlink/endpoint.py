@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import math
 import time
@@ -192,6 +193,7 @@ def _r(x: float) -> int:
     return round(x) if math.isfinite(x) else 0
 
 
+@functools.cache
 def _version() -> int:
     """``flight_sw_version``: major, minor, patch, type (dev) in the four bytes."""
     try:
