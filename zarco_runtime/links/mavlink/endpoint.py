@@ -789,7 +789,9 @@ class MavlinkEndpoint:
             return
         c = self.counters.telemetry
         c[name] = c.get(name, 0) + 1
-        link.send(msg, reply=name == "HEARTBEAT")
+        # in order with the replies: the heartbeat, and MISSION_CURRENT (also sent
+        # as a reply at every change, so a queued older one must not follow it)
+        link.send(msg, reply=name in ("HEARTBEAT", "MISSION_CURRENT"))
 
     def _build(self, name: str, now: float) -> Any:
         return getattr(self, f"_msg_{name.lower()}")(now)
@@ -837,6 +839,13 @@ class MavlinkEndpoint:
                 present |= bit
                 if good:
                     health |= bit
+        # the geofence as ArduPilot reports it: healthy unless breached (a GCS says
+        # "fence breach" when this bit drops)
+        fence = self.cfg.geofence
+        if fence.radius_m > 0.0 or fence.polygon:
+            present |= mav.MAV_SYS_STATUS_GEOFENCE
+        if st is None or "geofence" not in st.failsafes:
+            health |= mav.MAV_SYS_STATUS_GEOFENCE
         sent = sum(ln.sent for ln in self.links) or 1
         drops = sum(ln.dropped_telemetry for ln in self.links)
         errors = min(UINT16_MAX, sum(ln.bad_data for ln in self.links))
