@@ -248,6 +248,8 @@ class MavlinkEndpoint:
         self.mission_state = mav.MISSION_STATE_NO_MISSION
         self.cur = 0  # the waypoint (index into wps) the boat is heading for
         self.upload: _Upload | None = None
+        self.cleared = False  # the GCS cleared the mission (MISSION_CLEAR_ALL, count 0)
+        self.unsigned_t: dict[tuple[int, str], float] = {}
         self.manual = _Manual()
         self.texts: dict[str, float] = {}
         self.text_id = 0
@@ -409,7 +411,11 @@ class MavlinkEndpoint:
                 self._param_value(link, p)
         else:
             return  # heartbeats, reads, corrections, joystick: dropped
-        self._event("link", f"unsigned or wrongly signed {name} from mavlink:{src} refused")
+        now = self.clock.now()
+        if now - self.unsigned_t.get((src, name), -math.inf) >= TEXT_REPEAT_S:
+            self.unsigned_t[(src, name)] = now  # said at most every 2 s per sender and kind
+            self._event("link", f"unsigned or wrongly signed {name} from mavlink:{src} "
+                        "refused")
 
     # ------------------------------------------------------------- heartbeat
 
@@ -451,9 +457,9 @@ class MavlinkEndpoint:
         elif cmd == mav.MAV_CMD_DO_SET_MODE:
             self._set_mode(link, src, comp, cmd, int(p1), p2)
         elif cmd == mav.MAV_CMD_MISSION_START:
-            if not self.items:
-                self._event("mission", f"MISSION_START from mavlink:{src} refused: no "
-                            "mission uploaded")
+            if self.cleared:
+                self._event("mission", f"MISSION_START from mavlink:{src} refused: the "
+                            "mission was cleared")
                 ack(mav.MAV_RESULT_DENIED)
             else:
                 supervise("mode", {"mode": Mode.LINES.value})
@@ -497,9 +503,9 @@ class MavlinkEndpoint:
                         f"{custom:g} unknown (custom modes: {table})")
             self._command_ack(link, src, comp, cmd, mav.MAV_RESULT_DENIED)
             return
-        if mode is Mode.LINES and not self.items:
-            self._event("mission", f"mode lines from mavlink:{src} refused: no mission "
-                        "uploaded")
+        if mode is Mode.LINES and self.cleared:
+            self._event("mission", f"mode lines from mavlink:{src} refused: the mission "
+                        "was cleared")
             self._command_ack(link, src, comp, cmd, mav.MAV_RESULT_DENIED)
             return
         self._spawn(self._supervised(link, src, comp, cmd, "mode", {"mode": mode.value}))
@@ -664,6 +670,7 @@ class MavlinkEndpoint:
                 "name": f"{len(parsed.waypoints)} waypoints from {source}"}, source=source)
             if ack.ok:
                 self.counters.missions_uploaded += 1
+                self.cleared = False
                 self.items = items
                 self.wp_seqs = parsed.wp_seqs
                 self.wps = tuple(parsed.waypoints)
@@ -680,6 +687,9 @@ class MavlinkEndpoint:
             self.upload = None
 
     def _clear_mission(self) -> None:
+        # the supervisor keeps the mission it had loaded (it has no command to drop
+        # it): starting it is refused here until a new one is uploaded
+        self.cleared = True
         self.items, self.wp_seqs, self.wps = [], [], ()
         self.cur = 0
         self.mission_state = mav.MISSION_STATE_NO_MISSION
