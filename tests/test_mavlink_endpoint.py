@@ -2,7 +2,8 @@
 on loopback (UDP, TCP) or on a pseudo-terminal (serial): GPS_RTCM_DATA is
 reassembled into RtcmCorrections(source="mavlink") on the bus, byte for byte;
 a GCS heartbeat is an OperatorHeartbeat(link="mavlink"); a TCP ground station
-can leave and come back; a serial link works through a pty."""
+can leave and come back; a serial link works through a pty; a forged signed
+packet cannot lock the real ground station out."""
 
 from __future__ import annotations
 
@@ -47,11 +48,12 @@ class Seen:
     heartbeats: list[OperatorHeartbeat] = field(default_factory=list)
 
 
-def run_endpoint(url: str, gcs: Callable[[Seen], None]) -> Seen:
+def run_endpoint(url: str, gcs: Callable[[Seen], None], signing_key_file: str = "") -> Seen:
     """Run the endpoint on ``url`` while ``gcs(seen)`` runs on a thread."""
     cfg = RuntimeConfig()
     cfg.mavlink.enabled = True
     cfg.mavlink.url = url
+    cfg.mavlink.signing_key_file = signing_key_file
     bus = Bus()
     seen = Seen()
     bus.listen(RtcmCorrections, seen.rtcm.append)
@@ -177,3 +179,43 @@ def test_a_serial_ground_station_on_a_pty() -> None:
         os.close(master)
         os.close(slave)
     assert seen.heartbeats and seen.heartbeats[0].link == "mavlink"
+
+
+def test_a_forged_packet_cannot_make_the_signed_ground_station_look_replayed(
+        tmp_path: Any) -> None:
+    """With signing, a packet claiming the ground station's ids and a far-future
+    timestamp, but signed with another key, is refused and changes nothing: the
+    real station's next command is still taken."""
+    key = os.urandom(32)
+    (tmp_path / "k").write_bytes(key)
+    port = free_port(socket.SOCK_DGRAM)
+    results: list[int] = []
+
+    def gcs(seen: Seen) -> None:
+        c = connect(f"udpout:127.0.0.1:{port}")
+        c.setup_signing(key, sign_outgoing=True)
+        forger = mav.MAVLink(c, srcSystem=255, srcComponent=190)  # same ids, other key
+        forger.signing.secret_key = os.urandom(32)
+        forger.signing.sign_outgoing = True
+        forger.signing.timestamp = c.mav.signing.timestamp + 100_000 * 86_400  # a day ahead
+
+        def request(m: Any) -> int:
+            m.command_long_send(1, 1, mav.MAV_CMD_REQUEST_MESSAGE, 0,
+                                mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0)
+            ack = c.recv_match(type="COMMAND_ACK", blocking=True, timeout=3)
+            assert ack is not None
+            return int(ack.result)
+
+        try:
+            end = time.monotonic() + 5.0
+            while time.monotonic() < end:
+                gcs_heartbeat(c.mav)
+                if c.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2) is not None:
+                    break
+            results.extend([request(c.mav), request(forger), request(c.mav)])
+        finally:
+            c.close()
+
+    cfg_key = str(tmp_path / "k")
+    run_endpoint(f"udpin:127.0.0.1:{port}", gcs, signing_key_file=cfg_key)
+    assert results == [mav.MAV_RESULT_ACCEPTED, mav.MAV_RESULT_DENIED, mav.MAV_RESULT_ACCEPTED]

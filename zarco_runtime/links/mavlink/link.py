@@ -25,6 +25,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import hashlib
 import logging
 import os
 import select
@@ -44,6 +45,25 @@ MAX_REPLIES = 4096
 MAX_TELEMETRY = 256
 REOPEN_MIN_S = 0.5
 REOPEN_MAX_S = 5.0
+
+
+class SignedMAVLink(mav.MAVLink):  # type: ignore[misc]
+    """pymavlink's MAVLink with the signature checked before its timestamp is
+    believed: pymavlink records a stream's newest timestamp before comparing
+    the signature, so one forged packet with a far-future timestamp would make
+    every later packet of the real sender look replayed (and be refused)."""
+
+    def check_signature(self, msgbuf: bytearray, srcSystem: int,
+                        srcComponent: int) -> bool:
+        key = self.signing.secret_key
+        if key is None or len(msgbuf) < 13:
+            return False
+        h = hashlib.sha256()
+        h.update(key)
+        h.update(msgbuf[:-6])
+        if h.digest()[:6] != bytes(msgbuf[-6:]):
+            return False
+        return bool(super().check_signature(msgbuf, srcSystem, srcComponent))
 
 
 def signing_timestamp(now_s: float | None = None) -> int:
@@ -140,7 +160,7 @@ class Link:
         conn = mavutil.mavlink_connection(self.url, source_system=self.system_id,
                                           source_component=self.component_id,
                                           autoreconnect=False, retries=0)
-        m = mav.MAVLink(conn, srcSystem=self.system_id, srcComponent=self.component_id)
+        m = SignedMAVLink(conn, srcSystem=self.system_id, srcComponent=self.component_id)
         m.robust_parsing = True
         if self.key is not None:
             m.signing.secret_key = self.key
