@@ -117,6 +117,18 @@ def test_manual_thrust_from_before_the_mode_was_entered_is_ignored() -> None:
     assert (a.u1, a.u2) == (0.0, 0.0)
 
 
+def test_manual_thrust_lasts_across_the_directive_being_republished() -> None:
+    """The supervisor republishes the same directive every 0.2 s: a command within
+    its lease still holds (only one from before the mode began is ignored)."""
+    r = Rig()
+    r.directive(0.0, Mode.MANUAL)
+    r.task.tick(0.05)
+    r.bus.publish(ManualThrust(0.1, 30.0, 20.0, until=1.1))
+    r.directive(0.2, Mode.MANUAL)  # republished, same seq
+    a = r.task.tick(0.25)
+    assert (a.u1, a.u2) == (30.0, 20.0)
+
+
 def test_idle_directive_stops_a_running_mission_at_the_next_tick() -> None:
     r = Rig()
     r.directive(0.0, Mode.LINES, mission=LINES)

@@ -31,6 +31,7 @@ from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext, Factory, Runnable, Supervised
 from zarco_core.messages import ComponentState, HealthState, ThrusterCommand, VesselStatus
 from zarco_runtime.control.task import ControlTask
+from zarco_runtime.links.mavlink.endpoint import MavlinkEndpoint
 from zarco_runtime.links.recorder.recorder import recorder_factory
 from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.sd_notify import Notifier, devices_opened
@@ -106,6 +107,8 @@ class Runtime:
         if cfg.supervisor.control_socket:
             add("local", lambda ctx: ControlSocket(cfg.supervisor.control_socket, self.bus,
                                                    self.clock, ctx.listen))
+        if cfg.mavlink.enabled:
+            add("mavlink", lambda ctx: MavlinkEndpoint(cfg, self.bus, self.clock, ctx))
         self.extra: list[tuple[str, Callable[[], object]]] = []
         self.notifier: Notifier | None = None
         if notify is not None:

@@ -23,6 +23,7 @@ from zarco_core.vessel import (
 from zarco_runtime.control.settings import XTRACK_RATE_TAU_S, Control, xtrack_rate_tau_s
 from zarco_runtime.guidance.follow import FollowSettings
 from zarco_runtime.guidance.settings import Guidance, HoldSettings
+from zarco_runtime.links.mavlink.settings import MavlinkSettings
 from zarco_runtime.links.recorder.settings import Record
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.navigation.settings import Navigation
@@ -65,6 +66,8 @@ class RuntimeConfig:
     failsafe: Failsafe = spec(Failsafe)
     geofence: Geofence = spec(Geofence)
     record: Record = spec(Record, doc="the recorder (MCAP of every bus message and raw chunk)")
+    mavlink: MavlinkSettings = spec(MavlinkSettings, doc="MAVLink endpoint (QGroundControl, "
+                                    "MAVProxy)")
 
 
 __all__ = [

@@ -78,6 +78,7 @@ class ControlTask:
         self.period_jitter_hist = [0] * (JITTER_BINS + 1)
         self.ctl = self._new_controller()
         self.seq = -1
+        self.entered_t = -math.inf
         self.mode = Mode.IDLE
         self.lines: LineGuidance | None = None
         self.follow: FollowGuidance | None = None
@@ -101,6 +102,7 @@ class ControlTask:
     def _enter(self, d: Directive) -> None:
         """A new directive: build the guidance of its mode, reset the controllers."""
         self.seq = d.seq
+        self.entered_t = d.t  # when this directive began (republishing keeps its seq)
         self.mode = d.mode
         self.lines = self.follow = self.hold = None
         self._psi_hold = None
