@@ -74,7 +74,8 @@ class Runtime:
         gps_var, cmp_var = dev.gps.variation_deg, dev.compass.variation_deg
         # device drivers keep their instance (and counters) across restarts
         self.gps = NmeaDevice("gps", dev.gps, self.bus, self.clock,
-                              lambda line, t: parse_gps(line, t, "gps", gps_var), self.ports)
+                              lambda line, t: parse_gps(line, t, "gps", gps_var), self.ports,
+                              rtcm=True)
         self.compass = NmeaDevice("compass", dev.compass, self.bus, self.clock,
                                   lambda line, t: parse_compass(line, t, "compass", cmp_var),
                                   self.ports)
