@@ -31,6 +31,7 @@ from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext, Factory, Runnable, Supervised
 from zarco_core.messages import ThrusterCommand
 from zarco_runtime.control.task import ControlTask
+from zarco_runtime.links.shore.link import ShoreLink
 from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.settings import RuntimeConfig
 from zarco_runtime.supervision.local import ControlSocket
@@ -99,6 +100,8 @@ class Runtime:
         if cfg.supervisor.control_socket:
             add("local", lambda ctx: ControlSocket(cfg.supervisor.control_socket, self.bus,
                                                    self.clock, ctx.listen))
+        if cfg.shore.enabled:
+            add("shore", lambda ctx: ShoreLink(cfg, self.bus, self.clock, ctx))
         self.extra: list[tuple[str, Callable[[], object]]] = []
 
     # ------------------------------------------------------------ factories

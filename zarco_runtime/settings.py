@@ -23,6 +23,7 @@ from zarco_core.vessel import (
 from zarco_runtime.control.settings import XTRACK_RATE_TAU_S, Control, xtrack_rate_tau_s
 from zarco_runtime.guidance.follow import FollowSettings
 from zarco_runtime.guidance.settings import Guidance, HoldSettings
+from zarco_runtime.links.shore.settings import Shore
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.navigation.settings import Navigation
 from zarco_runtime.supervision.settings import Failsafe, Geofence, Supervisor
@@ -63,6 +64,7 @@ class RuntimeConfig:
     supervisor: Supervisor = spec(Supervisor)
     failsafe: Failsafe = spec(Failsafe)
     geofence: Geofence = spec(Geofence)
+    shore: Shore = spec(Shore, doc="shore supervision over zenoh")
 
 
 __all__ = [
