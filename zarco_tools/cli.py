@@ -208,3 +208,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     r.set_defaults(func=cmd_replay)
 
+    from zarco_tools.shore.cli import register as register_shore
+
+    register_shore(sub)
