@@ -248,6 +248,8 @@ class ShoreClient:
         self._hb_thread: threading.Thread | None = None
         self._hb_vessels: set[str] | None = None
         self.client_id = uuid.uuid4().hex[:8]
+        #: UTC time of the last heartbeat published (None: none yet)
+        self.last_heartbeat: float | None = None
 
     # --------------------------------------------------------- connection
 
@@ -386,10 +388,12 @@ class ShoreClient:
         if vessels is None:
             with self.lock:
                 vessels = sorted(self.vessels)
-        msg = json.dumps({"t": round(time.time(), 3), "user": self.config.user})
+        t = time.time()
+        msg = json.dumps({"t": round(t, 3), "user": self.config.user})
         for v in vessels:
             for _, s in self._sessions_for(v):
                 s.put(f"zarco/{v}/operator", msg)
+        self.last_heartbeat = t
 
     def _sessions_for(self, vessel: str) -> list[tuple[Credentials, Any]]:
         with self.lock:
