@@ -31,9 +31,8 @@ def _observer(eps: list[str], want: list[str], timeout_s: float = 30.0) -> Shore
     deadline = time.monotonic() + timeout_s
     while True:
         c = ShoreClient(ConsoleConfig([Credentials(e) for e in eps], user="observer"))
-        if not c.connect():
-            if set(want) <= set(c.wait_vessels(5.0, want[-1])):
-                return c
+        if not c.connect() and set(want) <= set(c.wait_vessels(5.0, want[-1])):
+            return c
         c.close()
         if time.monotonic() > deadline:
             raise AssertionError(f"never heard {want} on {eps}")
