@@ -10,7 +10,8 @@ GPS_RTCM_DATA) and returns the whole frames whose CRC-24Q checks; anything
 else (a UBX command, NMEA, noise, a truncated or corrupted frame) is counted
 and dropped, so that nothing but valid corrections is ever written to a
 receiver's port.  After a bad candidate the filter resynchronises on the
-next preamble byte.
+next preamble byte; a candidate whose announced length runs past the data
+received so far does not hold back a whole valid frame found inside it.
 
 The CRC-24Q (polynomial 0x1864CFB, initial value 0, no final XOR) is a
 table-driven implementation: the bit-by-bit reference (``pyrtcm``'s
@@ -74,6 +75,19 @@ def message_type(frame_bytes: bytes) -> int | None:
     return (frame_bytes[3] << 4) | (frame_bytes[4] >> 4)
 
 
+def _valid_frame_from(buf: bytearray, start: int, n: int) -> int:
+    """Index of the first whole, CRC-valid frame starting at or after ``start``
+    within ``buf[:n]``; -1 if none."""
+    j = buf.find(PREAMBLE, start, n)
+    while j >= 0:
+        if n - j >= HEADER_LEN and not buf[j + 1] & 0xFC:
+            end = j + HEADER_LEN + (((buf[j + 1] & 0x03) << 8) | buf[j + 2]) + CRC_LEN
+            if end <= n and crc24q(memoryview(buf)[j:end]) == 0:
+                return j
+        j = buf.find(PREAMBLE, j + 1, n)
+    return -1
+
+
 class Rtcm3Filter:
     """Reassembles RTCM3 frames from chunks of one byte stream; passes only valid ones.
 
@@ -124,7 +138,15 @@ class Rtcm3Filter:
                 continue
             end = i + HEADER_LEN + (((buf[i + 1] & 0x03) << 8) | buf[i + 2]) + CRC_LEN
             if end > n:
-                break  # wait for the rest of this candidate
+                # wait for the rest of this candidate, unless a whole valid frame
+                # already starts inside it: then it was noise that looked like a header
+                k = _valid_frame_from(buf, i + 1, n)
+                if k < 0:
+                    break
+                bad += 1
+                dropped += k - i
+                i = k
+                continue
             candidate = bytes(buf[i:end])
             if crc24q(candidate) == 0:
                 out.append(candidate)

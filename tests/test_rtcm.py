@@ -94,6 +94,19 @@ def test_filter_drops_everything_that_is_not_a_valid_frame() -> None:
         map(len, got))
 
 
+def test_a_false_header_does_not_hold_back_the_frames_after_it() -> None:
+    """Noise that reads as a header announcing 359 bytes, then real frames and
+    the end of the stream: the frames pass at once, not 359 bytes later."""
+    rng = random.Random(8)
+    frames = [F1005, msm_like(rng, 30), F1005]
+    flt = Rtcm3Filter()
+    got = flt.feed(b"\x00\xd3\x01garbage" + b"".join(frames))
+    assert got == frames
+    assert flt.counters["rtcm_bad_frames"] == 1
+    assert flt.counters["rtcm_dropped_bytes"] == len(b"\x00\xd3\x01garbage")
+    assert flt.pending == 0
+
+
 def test_random_bytes_never_pass() -> None:
     rng = random.Random(2024)
     flt = Rtcm3Filter()
@@ -168,7 +181,8 @@ def test_gps_port_gets_only_valid_frames_from_the_bus() -> None:
         dev = NmeaDevice("gps", Device(url=path), bus, Clock(),
                          lambda line, t: parse_gps(line, t, "gps"), rtcm=True)
         task = asyncio.create_task(dev.run())
-        await asyncio.sleep(0.2)
+        while dev._reading is None:  # frames for a GPS port not open yet are dropped
+            await asyncio.sleep(0.01)
         i = j = 0
         while i < len(shore_stream) or j < len(mav_stream):
             a, b = rng.randint(1, 700), rng.randint(1, 300)
@@ -208,7 +222,10 @@ def test_tcp_corrections_source_goes_through_the_same_filter() -> None:
     master, slave, path = _pty()
 
     async def main() -> tuple[bytes, Counter[str]]:
+        port_open = asyncio.Event()
+
         async def serve(_r: asyncio.StreamReader, w: asyncio.StreamWriter) -> None:
+            await port_open.wait()  # frames for a GPS port not open yet are dropped
             for k in range(0, len(stream), 97):
                 w.write(stream[k:k + 97])
                 await w.drain()
@@ -221,6 +238,9 @@ def test_tcp_corrections_source_goes_through_the_same_filter() -> None:
         dev = NmeaDevice("gps", Device(url=path, corrections_url=f"tcp://127.0.0.1:{port}"),
                          bus, Clock(), lambda line, t: parse_gps(line, t, "gps"), rtcm=True)
         task = asyncio.create_task(dev.run())
+        while dev._reading is None:
+            await asyncio.sleep(0.01)
+        port_open.set()
         got = await _read_until(master, sum(map(len, frames)), 3.0)
         task.cancel()
         await asyncio.gather(task, return_exceptions=True)

@@ -16,8 +16,10 @@ clockwise from true north in [0, 360); a value the boat does not know is
 ``health`` (1 Hz)
     ``devices``: {name: {``state`` (ok, stale, disconnected, faulty),
     ``age_s`` since its last valid sentence, ``ok`` sentences accepted,
-    ``bad`` refused, ``reason``}}; also ``components`` {name: {state,
-    restarts}} and the ``link``'s own counters.
+    ``bad`` refused, ``reason``, ``counters`` (the driver's: refusals by
+    reason, reconnections, RTCM3 frames passed ``rtcm_frames``, bad
+    ``rtcm_bad_frames``, bytes dropped ``rtcm_dropped_bytes``)}}; also
+    ``components`` {name: {state, restarts}} and the ``link``'s own counters.
 ``auv`` (per track update)
     the AUV's estimated ``lat_deg``, ``lon_deg``, ``course_deg``,
     ``speed_mps``, ``status`` (acquiring, tracking, turning, stale, lost) and
@@ -92,7 +94,7 @@ def state(vessel: str, utc: float, now: float, nav: NavState | None,
 def health(utc: float, status: VesselStatus, link: dict[str, int]) -> dict[str, Any]:
     """The ``health`` object from the status snapshot."""
     devices = {name: {"state": d.state, "age_s": num(d.age_s, 3), "ok": d.ok, "bad": d.bad,
-                      "reason": d.reason}
+                      "reason": d.reason, "counters": dict(d.counters)}
                for name, d in status.devices.items()}
     comps = {name: {"state": c.state, "restarts": c.restarts}
              for name, c in status.components.items()}
