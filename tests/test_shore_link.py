@@ -213,6 +213,11 @@ def test_rtcm_from_zenoh_reaches_the_gps_port_only_as_valid_frames() -> None:
         with contextlib.suppress(BlockingIOError):
             got.extend(os.read(master, 65536))
         assert gps.counters["rtcm_frames"] == len(frames)
+        # one sample larger than 16 kB (valid frames, but too much at once) is dropped
+        big = frames[0] * (17000 // len(frames[0]) + 1)
+        await loop.run_in_executor(None, s.put, "zarco/v1/rtcm", big)
+        await asyncio.sleep(0.3)
+        assert gps.counters["rtcm_frames"] == len(frames)
 
     try:
         _run(_config(port), port, body, gps_path=os.ttyname(slave))

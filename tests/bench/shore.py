@@ -241,12 +241,15 @@ def cpu_run(with_link: bool, seconds: float, tmp: Path, k: int) -> float:
 
 
 SIM_CODE = """
-import json, sys
+import json, sys, time
 from zarco_tools.scenario import load_scenario
 from zarco_tools.simulation import run_scenario
-r = run_scenario(load_scenario(sys.argv[1], ["mission.speed_mps=1.0"], int(sys.argv[2]))).report
-print(json.dumps({"speedup": r["speedup"], "sim_seconds": r["sim_seconds"],
-                  "xtrack_rms_m": r["xtrack_rms_m"]}))
+scn = load_scenario(sys.argv[1], ["mission.speed_mps=1.0"], int(sys.argv[2]))
+c0 = time.process_time()
+r = run_scenario(scn).report
+cpu = time.process_time() - c0
+print(json.dumps({"speedup": r["speedup"], "speedup_cpu": round(r["sim_seconds"] / cpu, 1),
+                  "sim_seconds": r["sim_seconds"], "xtrack_rms_m": r["xtrack_rms_m"]}))
 """
 
 
@@ -268,8 +271,10 @@ def main() -> None:
     ap.add_argument("--cmds", type=int, default=150, help="commands per auth mode")
     ap.add_argument("--cpu-pairs", type=int, default=3)
     ap.add_argument("--cpu-s", type=float, default=40.0)
-    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
     ap.add_argument("--base", default="", help="base commit (default: merge base with main)")
+    ap.add_argument("--parts", nargs="+", default=["link", "cpu", "sim"],
+                    choices=["link", "cpu", "sim"], help="what to measure")
     args = ap.parse_args()
     if args.quick:
         args.link_s, args.cmds, args.cpu_pairs, args.cpu_s = 15.0, 50, 1, 15.0
@@ -277,83 +282,120 @@ def main() -> None:
     out: dict[str, Any] = {"bench": "shore"}
     with tempfile.TemporaryDirectory() as td:
         tmp = Path(td)
-        runs = []
-        for auth in ("none", "usrpwd", "mtls"):
-            log(f"link run, auth {auth}: {args.link_s:g} s of telemetry, {args.cmds} commands")
-            r = link_run(auth, tmp, args.link_s, args.cmds)
-            lat, rtt = r["latency_samples"], r["rtt"]
-            log(f"  state latency p50 {ms(pct(lat, 50))} ms p99 {ms(pct(lat, 99))} ms "
-                f"({len(lat)}); command rtt p50 {ms(pct(rtt, 50))} ms p99 {ms(pct(rtt, 99))} ms;"
-                f" link loss → {r['link_loss_mode']} after {r['link_loss_action_s']:.3f} s"
-                + (f"; security {r['security']}" if "security" in r else ""))
-            runs.append(r)
-        lat_all = [x for r in runs for x in r["latency_samples"]]
-        rtt_all = [x for r in runs for x in r["rtt"]]
-        out["telemetry_latency_ms"] = {"p50": ms(pct(lat_all, 50)), "p99": ms(pct(lat_all, 99)),
-                                       "max": ms(max(lat_all)), "samples": len(lat_all)}
-        out["telemetry_latency_ms_by_auth"] = {
-            r["auth"]: {"p50": ms(pct(r["latency_samples"], 50)),
-                        "p99": ms(pct(r["latency_samples"], 99))} for r in runs}
-        out["command_rtt_ms"] = {"p50": ms(pct(rtt_all, 50)), "p99": ms(pct(rtt_all, 99)),
-                                 "max": ms(max(rtt_all)), "samples": len(rtt_all)}
-        out["command_rtt_ms_by_auth"] = {
-            r["auth"]: {"p50": ms(pct(r["rtt"], 50)), "p99": ms(pct(r["rtt"], 99))}
-            for r in runs}
-        acts = [r["link_loss_action_s"] for r in runs]
-        out["link_loss"] = {"link_lost_s": LINK_LOST_S,
-                            "action_s": [round(a, 3) for a in acts],
-                            "excess_max_s": round(max(acts) - LINK_LOST_S, 3),
-                            "modes": [r["link_loss_mode"] for r in runs]}
-        sec = [r["security"] for r in runs if "security" in r]
-        out["security"] = {
-            "viewer_commands_sent": sum(s["viewer_commands"] for s in sec),
-            "viewer_commands_accepted": sum(s["viewer_replies"] + s["acks_during_viewer_phase"]
-                                            for s in sec),
-            "unauthenticated_attempts": sum(s["unauthenticated_attempts"] for s in sec),
-            "unauthenticated_connected": sum(s["unauthenticated_connected"] for s in sec),
-            "mode_after_viewer_phase": [s["mode_after"] for s in sec]}
-        # CPU with and without the link, alternated
-        with_s: list[float] = []
-        without_s: list[float] = []
-        for k in range(args.cpu_pairs):
-            for with_link in (False, True):
-                log(f"cpu pair {k + 1}/{args.cpu_pairs}: {args.cpu_s:g} s real time, "
-                    f"shore link {'on' if with_link else 'off'}")
-                c = cpu_run(with_link, args.cpu_s, tmp, k)
-                (with_s if with_link else without_s).append(c / args.cpu_s)
-                log(f"  {100 * c / args.cpu_s:.2f} % of a core")
-        diffs = [100 * (w - o) for w, o in zip(with_s, without_s, strict=True)]
-        out["cpu"] = {"runtime_without_link_pct": round(100 * statistics.fmean(without_s), 2),
-                      "runtime_with_link_pct": round(100 * statistics.fmean(with_s), 2),
-                      "link_pct_of_a_core": round(statistics.fmean(diffs), 2),
-                      "link_pct_per_pair": [round(d, 2) for d in diffs],
-                      "window_s": args.cpu_s}
-        # simulation speed, link disabled: this tree against the base commit
-        base = args.base or subprocess.run(["git", "merge-base", "HEAD", "main"], cwd=ROOT,
-                                           capture_output=True, text=True).stdout.strip()
-        btree = tmp / "base"
-        btree.mkdir()
-        arch = subprocess.run(["git", "archive", base], cwd=ROOT, capture_output=True,
-                              check=True).stdout
-        subprocess.run(["tar", "-x", "-C", str(btree)], input=arch, check=True)
-        new, old = [], []
-        for seed in args.seeds:
-            for label, tree, acc in (("base", btree, old), ("this", ROOT, new)):
-                r = sim_speed(tree, seed)
-                acc.append(r["speedup"])
-                log(f"sim speed seed {seed} {label}: {r['speedup']}× real time "
-                    f"(xtrack RMS {r['xtrack_rms_m']:.4f} m)")
-        out["sim_speed"] = {"base_commit": base[:12], "base_speedup": statistics.median(old),
-                            "this_speedup": statistics.median(new),
-                            "ratio": round(statistics.median(new) / statistics.median(old), 3),
-                            "base_runs": old, "this_runs": new}
-    log(f"latency p50/p99 {out['telemetry_latency_ms']['p50']}/"
-        f"{out['telemetry_latency_ms']['p99']} ms; rtt p50/p99 {out['command_rtt_ms']['p50']}/"
-        f"{out['command_rtt_ms']['p99']} ms; link cpu {out['cpu']['link_pct_of_a_core']} %; "
-        f"viewer/unauth accepted {out['security']['viewer_commands_accepted']}/"
-        f"{out['security']['unauthenticated_connected']}; sim speed ratio "
-        f"{out['sim_speed']['ratio']}")
+        if "link" in args.parts:
+            link_figures(args, tmp, out)
+        if "cpu" in args.parts:
+            cpu_figures(args, tmp, out)
+        if "sim" in args.parts:
+            sim_figures(args, tmp, out)
+    log("; ".join(f"{k} {v}" for k, v in summary(out).items()))
     print(json.dumps(out))
+
+
+def summary(out: dict[str, Any]) -> dict[str, Any]:
+    s: dict[str, Any] = {}
+    if "telemetry_latency_ms" in out:
+        s["latency p50/p99 ms"] = (f"{out['telemetry_latency_ms']['p50']}/"
+                                   f"{out['telemetry_latency_ms']['p99']}")
+        s["rtt p50/p99 ms"] = f"{out['command_rtt_ms']['p50']}/{out['command_rtt_ms']['p99']}"
+        s["viewer/unauthenticated accepted"] = (
+            f"{out['security']['viewer_commands_accepted']}/"
+            f"{out['security']['unauthenticated_connected']}")
+    if "cpu" in out:
+        s["link cpu %"] = out["cpu"]["link_pct_of_a_core"]
+    if "sim_speed" in out:
+        s["sim speed ratio"] = out["sim_speed"]["ratio"]
+    return s
+
+
+def link_figures(args: argparse.Namespace, tmp: Path, out: dict[str, Any]) -> None:
+    runs = []
+    for auth in ("none", "usrpwd", "mtls"):
+        log(f"link run, auth {auth}: {args.link_s:g} s of telemetry, {args.cmds} commands")
+        r = link_run(auth, tmp, args.link_s, args.cmds)
+        lat, rtt = r["latency_samples"], r["rtt"]
+        log(f"  state latency p50 {ms(pct(lat, 50))} ms p99 {ms(pct(lat, 99))} ms "
+            f"({len(lat)}); command rtt p50 {ms(pct(rtt, 50))} ms p99 {ms(pct(rtt, 99))} ms;"
+            f" link loss → {r['link_loss_mode']} after {r['link_loss_action_s']:.3f} s"
+            + (f"; security {r['security']}" if "security" in r else ""))
+        runs.append(r)
+    lat_all = [x for r in runs for x in r["latency_samples"]]
+    rtt_all = [x for r in runs for x in r["rtt"]]
+    out["telemetry_latency_ms"] = {"p50": ms(pct(lat_all, 50)), "p99": ms(pct(lat_all, 99)),
+                                   "max": ms(max(lat_all)), "samples": len(lat_all)}
+    out["telemetry_latency_ms_by_auth"] = {
+        r["auth"]: {"p50": ms(pct(r["latency_samples"], 50)),
+                    "p99": ms(pct(r["latency_samples"], 99))} for r in runs}
+    out["command_rtt_ms"] = {"p50": ms(pct(rtt_all, 50)), "p99": ms(pct(rtt_all, 99)),
+                             "max": ms(max(rtt_all)), "samples": len(rtt_all)}
+    out["command_rtt_ms_by_auth"] = {
+        r["auth"]: {"p50": ms(pct(r["rtt"], 50)), "p99": ms(pct(r["rtt"], 99))}
+        for r in runs}
+    acts = [r["link_loss_action_s"] for r in runs]
+    out["link_loss"] = {"link_lost_s": LINK_LOST_S,
+                        "action_s": [round(a, 3) for a in acts],
+                        "excess_max_s": round(max(acts) - LINK_LOST_S, 3),
+                        "modes": [r["link_loss_mode"] for r in runs]}
+    sec = [r["security"] for r in runs if "security" in r]
+    out["security"] = {
+        "viewer_commands_sent": sum(s["viewer_commands"] for s in sec),
+        "viewer_commands_accepted": sum(s["viewer_replies"] + s["acks_during_viewer_phase"]
+                                        for s in sec),
+        "unauthenticated_attempts": sum(s["unauthenticated_attempts"] for s in sec),
+        "unauthenticated_connected": sum(s["unauthenticated_connected"] for s in sec),
+        "mode_after_viewer_phase": [s["mode_after"] for s in sec]}
+
+
+def cpu_figures(args: argparse.Namespace, tmp: Path, out: dict[str, Any]) -> None:
+    # CPU with and without the link, alternated
+    with_s: list[float] = []
+    without_s: list[float] = []
+    for k in range(args.cpu_pairs):
+        for with_link in (False, True):
+            log(f"cpu pair {k + 1}/{args.cpu_pairs}: {args.cpu_s:g} s real time, "
+                f"shore link {'on' if with_link else 'off'}")
+            c = cpu_run(with_link, args.cpu_s, tmp, k)
+            (with_s if with_link else without_s).append(c / args.cpu_s)
+            log(f"  {100 * c / args.cpu_s:.2f} % of a core")
+    diffs = [100 * (w - o) for w, o in zip(with_s, without_s, strict=True)]
+    out["cpu"] = {"runtime_without_link_pct": round(100 * statistics.fmean(without_s), 2),
+                  "runtime_with_link_pct": round(100 * statistics.fmean(with_s), 2),
+                  "link_pct_of_a_core": round(statistics.fmean(diffs), 2),
+                  "link_pct_per_pair": [round(d, 2) for d in diffs],
+                  "window_s": args.cpu_s}
+
+
+def sim_figures(args: argparse.Namespace, tmp: Path, out: dict[str, Any]) -> None:
+    # simulation speed, link disabled: this tree against the base commit
+    base = args.base or subprocess.run(["git", "merge-base", "HEAD", "main"], cwd=ROOT,
+                                       capture_output=True, text=True).stdout.strip()
+    btree = tmp / "base"
+    btree.mkdir()
+    arch = subprocess.run(["git", "archive", base], cwd=ROOT, capture_output=True,
+                          check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(btree)], input=arch, check=True)
+    new: list[dict[str, Any]] = []
+    old: list[dict[str, Any]] = []
+    for seed in args.seeds:
+        for label, tree, acc in (("base", btree, old), ("this", ROOT, new)):
+            r = sim_speed(tree, seed)
+            acc.append(r)
+            log(f"sim speed seed {seed} {label}: {r['speedup']}× real time, "
+                f"{r['speedup_cpu']}× per CPU second (xtrack RMS "
+                f"{r['xtrack_rms_m']:.4f} m)")
+    same = all(a["xtrack_rms_m"] == b["xtrack_rms_m"] for a, b in zip(old, new, strict=True))
+
+    def med(rs: list[dict[str, Any]], k: str) -> float:
+        return float(statistics.median(r[k] for r in rs))
+
+    out["sim_speed"] = {
+        "base_commit": base[:12],
+        "base_speedup": med(old, "speedup"), "this_speedup": med(new, "speedup"),
+        "ratio": round(med(new, "speedup_cpu") / med(old, "speedup_cpu"), 3),
+        "ratio_wall": round(med(new, "speedup") / med(old, "speedup"), 3),
+        "base_runs_cpu": [r["speedup_cpu"] for r in old],
+        "this_runs_cpu": [r["speedup_cpu"] for r in new],
+        "same_results": same}
 
 
 if __name__ == "__main__":

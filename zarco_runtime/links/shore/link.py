@@ -72,6 +72,10 @@ INBOX_MAX = 1024
 OUTBOX_MAX = 1024
 #: a command payload larger than this is refused unread (bytes)
 MAX_COMMAND_BYTES = 65536
+#: an ``rtcm`` sample larger than this is dropped and counted (bytes): a relay sends
+#: what it read, a few frames of at most 1029 bytes; the GPS driver checks every byte
+#: on the event loop, which must not be held by one huge sample
+MAX_RTCM_BYTES = 16384
 
 
 class _Inbox:
@@ -232,8 +236,12 @@ class ShoreLink:
     def _on_sample(self, kind: str) -> Callable[[Any], None]:
         def cb(sample: Any) -> None:  # a zenoh thread
             inbox = self._inbox
-            if inbox is not None:
-                inbox.post((kind, sample.payload.to_bytes()))
+            if inbox is None:
+                return
+            if kind == "rtcm" and len(sample.payload) > MAX_RTCM_BYTES:
+                inbox.post(("rtcm_oversize", len(sample.payload)))
+                return
+            inbox.post((kind, sample.payload.to_bytes()))
         return cb
 
     def _handle(self, item: tuple[Any, ...]) -> None:
@@ -242,6 +250,10 @@ class ShoreLink:
         if kind == "rtcm":
             self.counters["rtcm_bytes"] += len(item[1])
             self.bus.publish(RtcmCorrections(self.clock.now(), "shore", item[1]))
+        elif kind == "rtcm_oversize":
+            self.counters["rtcm_oversize_dropped"] += 1
+            log.warning("shore: an rtcm sample of %d bytes dropped (more than %d)", item[1],
+                        MAX_RTCM_BYTES)
         elif kind == "operator":
             self._heartbeat(item[1])
         elif kind == "cmd":
