@@ -233,6 +233,8 @@ def cmd_thrust(args: argparse.Namespace) -> int:
             if sent:  # zero at once rather than at the end of the lease
                 with contextlib.suppress(Exception):
                     c.command(vessel, "thrust", {"u1": 0.0, "u2": 0.0}, args.timeout)
+        if keys is not None:
+            print(file=sys.stderr)
         if code == EXIT_OK:
             print(f"{vessel}: {sent} thrust commands accepted; thrust zeroed")
         return code

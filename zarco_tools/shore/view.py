@@ -56,6 +56,15 @@ COLUMNS = ("vessel", "mode", "position", "fix", "hdg/sog", "leg", "xtrack", "u1/
            "devices", "failsafes", "link")
 
 
+def shown_events(v: VesselView, n: int) -> list[dict[str, Any]]:
+    """The latest ``n`` events worth a line: not every accepted thrust (teleop
+    renews it several times a second)."""
+    evs = [e for e in v.events if not (e.get("kind") == "ack"
+                                       and str(e.get("text", "")).startswith("thrust from")
+                                       and str(e.get("text", "")).endswith("accepted"))]
+    return evs[-n:] if n > 0 else []
+
+
 def plain(vessels: dict[str, VesselView], events: int = 3) -> str:
     """The view as plain text (a table and each vessel's latest events)."""
     rows = [row(v) for _, v in sorted(vessels.items())]
@@ -65,7 +74,7 @@ def plain(vessels: dict[str, VesselView], events: int = 3) -> str:
     lines = ["  ".join(c.ljust(width[c]) for c in COLUMNS)]
     lines += ["  ".join(r[c].ljust(width[c]) for c in COLUMNS) for r in rows]
     for name, v in sorted(vessels.items()):
-        for e in v.events[-events:] if events else []:
+        for e in shown_events(v, events):
             lines.append(f"  {name} {_clock(e.get('t'))} {e.get('kind')}: {e.get('text')}")
     return "\n".join(lines)
 
@@ -97,7 +106,7 @@ def rich_view(vessels: dict[str, VesselView], endpoints: list[str], events: int 
     if not vessels:
         parts.append(Text("waiting for telemetry…"))
     for name, v in sorted(vessels.items()):
-        for e in v.events[-events:]:
+        for e in shown_events(v, events):
             parts.append(Text(f"{name} {_clock(e.get('t'))} {e.get('kind')}: {e.get('text')}",
                               style="yellow" if e.get("kind") == "failsafe" else ""))
     return Group(*parts)
