@@ -17,6 +17,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from zarco_tools.shore.client import ConsoleConfig, Credentials, ShoreClient
+
 ROOT = Path(__file__).resolve().parents[1]
 RECT = ROOT / "config" / "scenarios" / "rectangle.toml"
 
@@ -168,3 +170,24 @@ def connect_when_up(make: Any, timeout_s: float = 30.0) -> Any:
             if time.monotonic() > deadline:
                 raise
             time.sleep(0.2)
+
+
+def shore(*args: str, env: dict[str, str] | None = None, timeout: float = 30.0
+          ) -> subprocess.CompletedProcess[str]:
+    """``zarco shore ARGS`` as an operator types it."""
+    return subprocess.run([sys.executable, "-m", "zarco_runtime.cli", "shore", *args],
+                          capture_output=True, text=True, cwd=ROOT, timeout=timeout,
+                          env={**os.environ, **(env or {})})
+
+
+def observer(eps: list[str], want: list[str], timeout_s: float = 30.0) -> ShoreClient:
+    """A client of every endpoint that has heard every vessel in ``want``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        c = ShoreClient(ConsoleConfig([Credentials(e) for e in eps], user="observer"))
+        if not c.connect() and set(want) <= set(c.wait_vessels(5.0, want[-1])):
+            return c
+        c.close()
+        if time.monotonic() > deadline:
+            raise AssertionError(f"never heard {want} on {eps}")
+        time.sleep(0.3)

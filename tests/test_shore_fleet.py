@@ -6,37 +6,25 @@ failsafe, and the refusal of ``auth = "none"`` off loopback."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from shore_support import RECT, ROOT, Boat, boats, free_port, write_credentials, write_users
+from shore_support import (
+    RECT,
+    ROOT,
+    Boat,
+    boats,
+    free_port,
+    observer,
+    shore,
+    write_credentials,
+    write_users,
+)
 
 from zarco_tools.shore.client import ConsoleConfig, Credentials, ShoreClient
-
-
-def shore(*args: str, env: dict[str, str] | None = None, timeout: float = 30.0
-          ) -> subprocess.CompletedProcess[str]:
-    """``zarco shore ARGS`` as an operator types it."""
-    return subprocess.run([sys.executable, "-m", "zarco_runtime.cli", "shore", *args],
-                          capture_output=True, text=True, cwd=ROOT, timeout=timeout,
-                          env={**os.environ, **(env or {})})
-
-
-def _observer(eps: list[str], want: list[str], timeout_s: float = 30.0) -> ShoreClient:
-    """A client of every endpoint that has heard every vessel in ``want``."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        c = ShoreClient(ConsoleConfig([Credentials(e) for e in eps], user="observer"))
-        if not c.connect() and set(want) <= set(c.wait_vessels(5.0, want[-1])):
-            return c
-        c.close()
-        if time.monotonic() > deadline:
-            raise AssertionError(f"never heard {want} on {eps}")
-        time.sleep(0.3)
 
 
 def _wait(c: ShoreClient, vessel: str, pred: Any, timeout_s: float = 20.0) -> dict[str, Any]:
@@ -61,7 +49,7 @@ def test_two_vessels_one_console(tmp_path: Path) -> None:
               "scenario.seed=2"], log=tmp_path / "beta.log")
     env = {"ZARCO_SHORE_CONNECT": f"{ea},{eb}", "ZARCO_SHORE_USER": "alice"}
     with boats(a, b):
-        obs = _observer([ea, eb], ["alpha", "beta"])
+        obs = observer([ea, eb], ["alpha", "beta"])
         try:
             for v in ("alpha", "beta"):
                 _wait(obs, v, lambda s: s["mode"] == "lines")
@@ -119,7 +107,7 @@ def test_link_loss_holds_after_link_lost_s(tmp_path: Path) -> None:
     boat = Boat([f'runtime.shore.listen=["{ep}"]', "runtime.failsafe.link_lost_s=2.0"],
                 log=tmp_path / "boat.log")
     with boats(boat):
-        obs = _observer([ep], ["zarco"])
+        obs = observer([ep], ["zarco"])
         op = ShoreClient(ConsoleConfig([Credentials(ep)], user="alice", heartbeat_hz=2.0))
         try:
             assert op.connect() == []

@@ -12,8 +12,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from shore_support import Boat, boats, free_port
-from test_shore_fleet import _observer, shore
+from shore_support import Boat, boats, free_port, observer, shore
 
 #: an RTCM3 1005 frame (reference station coordinates), as the standard's example
 F1005 = bytes.fromhex("D300133ED7D30202980EDEEF34B4BD62AC0941986F33360B98")
@@ -71,7 +70,7 @@ def test_corrections_from_file_tcp_and_ntrip_reach_the_gps(tmp_path: Path) -> No
     env = {"ZARCO_SHORE_CONNECT": ep}
     boat = Boat([f'runtime.shore.listen=["{ep}"]'], log=tmp_path / "boat.log")
     with boats(boat):
-        obs = _observer([ep], ["zarco"])
+        obs = observer([ep], ["zarco"])
         try:
             # a file: frames with a UBX reset and noise between them
             f = tmp_path / "base.rtcm3"

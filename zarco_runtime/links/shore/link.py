@@ -18,8 +18,9 @@ zenoh's access control (operators only); zenoh does not tell the application
 which authenticated user sent a query, so ``user`` is the name the client
 gives.
 
-Threads: zenoh calls its callbacks on its own threads.  They only append to
-an inbox and wake the event loop once (``call_soon_threadsafe``), where
+Threads: zenoh calls its callbacks on its own threads.  They make no zenoh
+call; they only append to an inbox and wake the event loop once
+(``call_soon_threadsafe``), where
 commands, heartbeats and corrections go on the bus.  Everything sent (puts,
 replies) goes through one sender thread, so no zenoh call is ever made on
 the event loop and a slow network cannot hold the control loop.  The
@@ -216,22 +217,20 @@ class ShoreLink:
 
     # ------------------------------------------------------------- incoming
 
-    def _on_query(self, query: Any) -> None:  # a zenoh thread
+    def _on_query(self, query: Any) -> None:  # a zenoh thread: no zenoh call here
         try:
             key = str(query.key_expr)
             payload = query.payload.to_bytes() if query.payload is not None else b""
             att = query.attachment.to_bytes() if query.attachment is not None else b""
-        except Exception as exc:
-            self.counters["bad_queries"] += 1
+        except Exception as exc:  # let zenoh drop it (no reply)
             log.debug("shore: unreadable query: %s", exc)
-            query.drop()
             return
         inbox = self._inbox
         if inbox is None or not inbox.post(("cmd", query, key, payload, att)):
-            with contextlib.suppress(Exception):
-                query.reply_err(json.dumps({"ok": False, "id": None, "mode": None,
-                                            "reason": "busy: too many commands queued"}))
-            query.drop()
+            busy = json.dumps({"ok": False, "id": None, "mode": None,
+                               "reason": "busy: too many commands queued"})
+            with contextlib.suppress(queue.Full):  # else zenoh drops it (no reply)
+                self._out.put_nowait(("reply", query, key, busy))
 
     def _on_sample(self, kind: str) -> Callable[[Any], None]:
         def cb(sample: Any) -> None:  # a zenoh thread
