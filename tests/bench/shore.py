@@ -273,12 +273,14 @@ def main() -> None:
     ap.add_argument("--cpu-s", type=float, default=40.0)
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
     ap.add_argument("--base", default="", help="base commit (default: merge base with main)")
+    ap.add_argument("--sim-reps", type=int, default=3, help="runs per seed and tree")
     ap.add_argument("--parts", nargs="+", default=["link", "cpu", "sim"],
                     choices=["link", "cpu", "sim"], help="what to measure")
     args = ap.parse_args()
     if args.quick:
         args.link_s, args.cmds, args.cpu_pairs, args.cpu_s = 15.0, 50, 1, 15.0
         args.seeds = args.seeds[:1]
+        args.sim_reps = 1
     out: dict[str, Any] = {"bench": "shore"}
     with tempfile.TemporaryDirectory() as td:
         tmp = Path(td)
@@ -378,11 +380,13 @@ def sim_figures(args: argparse.Namespace, tmp: Path, out: dict[str, Any]) -> Non
     old: list[dict[str, Any]] = []
     for seed in args.seeds:
         for label, tree, acc in (("base", btree, old), ("this", ROOT, new)):
-            r = sim_speed(tree, seed)
+            # the fastest of --sim-reps runs: what other load on the machine did not slow
+            reps = [sim_speed(tree, seed) for _ in range(args.sim_reps)]
+            r = max(reps, key=lambda x: float(x["speedup_cpu"]))
             acc.append(r)
             log(f"sim speed seed {seed} {label}: {r['speedup']}× real time, "
-                f"{r['speedup_cpu']}× per CPU second (xtrack RMS "
-                f"{r['xtrack_rms_m']:.4f} m)")
+                f"{r['speedup_cpu']}× per CPU second (best of {args.sim_reps}; xtrack "
+                f"RMS {r['xtrack_rms_m']:.4f} m)")
     same = all(a["xtrack_rms_m"] == b["xtrack_rms_m"] for a, b in zip(old, new, strict=True))
 
     def med(rs: list[dict[str, Any]], k: str) -> float:
@@ -393,6 +397,8 @@ def sim_figures(args: argparse.Namespace, tmp: Path, out: dict[str, Any]) -> Non
         "base_speedup": med(old, "speedup"), "this_speedup": med(new, "speedup"),
         "ratio": round(med(new, "speedup_cpu") / med(old, "speedup_cpu"), 3),
         "ratio_wall": round(med(new, "speedup") / med(old, "speedup"), 3),
+        "ratio_per_seed": [round(b["speedup_cpu"] / a["speedup_cpu"], 3)
+                           for a, b in zip(old, new, strict=True)],
         "base_runs_cpu": [r["speedup_cpu"] for r in old],
         "this_runs_cpu": [r["speedup_cpu"] for r in new],
         "same_results": same}
