@@ -1,14 +1,17 @@
-"""``zarco shore rtcm``: corrections from a file, a TCP server and an NTRIP caster
-(a small one on loopback, pygnssutils as the client) reach the simulated
+"""``zarco shore rtcm``: corrections from a file, a TCP server, an NTRIP caster
+(a small one on loopback, pygnssutils as the client) and a serial port (a
+pseudo-terminal) reach the simulated
 boat's GPS driver; only whole valid frames are relayed and counted."""
 
 from __future__ import annotations
 
 import base64
+import os
 import re
 import socket
 import threading
 import time
+import tty
 from pathlib import Path
 from typing import Any
 
@@ -109,6 +112,28 @@ def test_corrections_from_file_tcp_and_ntrip_reach_the_gps(tmp_path: Path) -> No
             n = 30 + int(m.group(1))
             c = _wait_frames(obs, n)
             assert c["rtcm_frames"] == n and c.get("rtcm_bad_frames", 0) == 0
+            # a base station on a local serial port (a pseudo-terminal here)
+            master, slave = os.openpty()
+            tty.setraw(slave)
+            tty.setraw(master)
+
+            def base_station() -> None:
+                time.sleep(1.5)  # the console opens the port first
+                for _ in range(12):
+                    os.write(master, UBX_RESET + F1005 + b"$GPGGA,noise*00\r\n")
+                    time.sleep(0.05)
+
+            threading.Thread(target=base_station, daemon=True).start()
+            try:
+                r = shore("rtcm", os.ttyname(slave), "--baudrate", "57600", "--duration", "3",
+                          env=env)
+            finally:
+                os.close(master)
+                os.close(slave)
+            assert r.returncode == 0, r.stdout + r.stderr
+            assert "12 frames" in r.stdout, r.stdout
+            c = _wait_frames(obs, n + 12)
+            assert c["rtcm_frames"] == n + 12
             # NTRIP credentials on the command line are refused
             r = shore("rtcm", f"ntrip://base:pw@127.0.0.1:{caster.port}/ZARCO0", env=env)
             assert r.returncode == 2 and "not on the command line" in r.stderr

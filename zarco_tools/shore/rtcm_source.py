@@ -6,7 +6,8 @@ serial port, a TCP server, an NTRIP caster (pygnssutils' client), or a file.
 (credentials from ``ZARCO_NTRIP_USER`` / ``ZARCO_NTRIP_PASSWORD`` or the
 console configuration's ``[ntrip] credentials_file``, never the command
 line), ``file://PATH`` (paced at ``--rate`` bytes per second).  Each yields
-chunks of bytes; the relay keeps only whole, CRC-valid RTCM3 frames.
+chunks of bytes (an empty one after half a second without any, so that the
+caller can stop); the relay keeps only whole, CRC-valid RTCM3 frames.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ def _tcp(spec: str, stop: threading.Event) -> Iterator[bytes]:
             try:
                 data = sock.recv(4096)
             except TimeoutError:
+                yield b""  # nothing for 0.5 s: the caller may stop
                 continue
             except OSError as exc:
                 raise SourceError(f"{spec}: {exc}") from None
@@ -75,8 +77,7 @@ def _serial(path: str, stop: threading.Event, baudrate: int) -> Iterator[bytes]:
                 data = port.read(4096)
             except (OSError, serial.SerialException) as exc:
                 raise SourceError(f"{path}: {exc}") from None
-            if data:
-                yield data
+            yield data  # b"" after 0.5 s without bytes: the caller may stop
 
 
 def _file(path: str, stop: threading.Event, rate_bps: float) -> Iterator[bytes]:
@@ -113,6 +114,7 @@ def _ntrip(spec: str, stop: threading.Event, user: str, password: str) -> Iterat
             except queue.Empty:
                 if not client.connected:
                     raise SourceError(f"{spec}: the caster closed the stream") from None
+                yield b""
                 continue
             raw = item[0] if isinstance(item, tuple) else item
             if isinstance(raw, (bytes, bytearray)):
