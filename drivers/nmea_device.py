@@ -21,11 +21,12 @@ from collections.abc import Callable
 from typing import Any
 
 from drivers.nmea import NmeaError, NmeaFramer
+from drivers.rtcm import Rtcm3Filter
 from drivers.settings import Device
 from drivers.transports import Ports, SystemPorts, Transport, TransportError
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
-from zarco_core.messages import DeviceHealth, HealthState
+from zarco_core.messages import DeviceHealth, HealthState, RtcmCorrections
 
 ParseFn = Callable[[str, float], list[Any]]
 #: ``raw(direction, t, data)``: a chunk read from (``"rx"``) or written to (``"tx"``)
@@ -159,12 +160,25 @@ class DeviceLink:
 
 
 class NmeaDevice(DeviceLink):
-    """An NMEA input device (GPS, compass/IMU): read, frame, parse, publish."""
+    """An NMEA input device (GPS, compass/IMU): read, frame, parse, publish.
+
+    With ``rtcm`` (the GPS receiver) it also writes RTCM3 corrections to its
+    port: from its own ``corrections_url`` and from every
+    :class:`~zarco_core.messages.RtcmCorrections` on the bus (the shore link,
+    MAVLink).  Each source goes through its own :class:`~drivers.rtcm.Rtcm3Filter`:
+    only whole frames with a valid CRC-24Q are written, each in one write, so
+    nothing else (a UBX command, noise, half a frame) ever reaches the receiver.
+    """
+
+    #: RtcmCorrections waiting for the device (chunks; the oldest is dropped beyond)
+    RTCM_QUEUE = 256
 
     def __init__(self, name: str, cfg: Device, bus: Bus, clock: Clock, parse: ParseFn,
-                 ports: Ports | None = None) -> None:
+                 ports: Ports | None = None, rtcm: bool = False) -> None:
         super().__init__(name, cfg, bus, clock, ports)
         self.parse = parse
+        self.rtcm = rtcm
+        self._rtcm_filters: dict[str, Rtcm3Filter] = {}
 
     def handle_line(self, line: str, t: float) -> None:
         """Parse one framed sentence and publish what it says (pure but for the bus)."""
@@ -193,14 +207,28 @@ class NmeaDevice(DeviceLink):
             tg.create_task(self._read_loop(), name=f"{self.name}.read")
             if self.cfg.corrections_url:
                 tg.create_task(self._corrections_loop(), name=f"{self.name}.rtcm")
+            if self.rtcm:
+                tg.create_task(self._relay_loop(), name=f"{self.name}.rtcm_relay")
+
+    async def _relay_loop(self) -> None:
+        """Write the RTCM3 corrections published on the bus (shore link, MAVLink)."""
+        sub = self.bus.subscribe(RtcmCorrections, maxlen=self.RTCM_QUEUE)
+        try:
+            while True:
+                msg: RtcmCorrections = await sub.get()
+                self._forward_corrections(msg.data, msg.source)
+                for m in sub.drain():  # a chunk lost to overflow shows as a bad frame
+                    self._forward_corrections(m.data, m.source)
+        finally:
+            sub.close()
 
     async def _corrections_loop(self) -> None:
-        """Copy RTCM3 correction bytes from the configured source to this port.
+        """Copy RTCM3 frames from the configured source to this port.
 
-        The bytes are opaque here (the receiver decodes RTCM3); the source is
-        reopened with the same backoff as a device when it fails, and bytes that
-        arrive while the device port is down are counted and dropped (stale
-        corrections are worse than none).
+        The source is reopened with the same backoff as a device when it fails
+        (a partial frame from before is dropped); only whole, CRC-valid frames
+        pass; frames that arrive while the device port is down are counted and
+        dropped (stale corrections are worse than none).
         """
         url = self.cfg.corrections_url
         backoff = BACKOFF_MIN_S
@@ -218,6 +246,7 @@ class NmeaDevice(DeviceLink):
                             raise TransportError("corrections source closed")
                         self._forward_corrections(chunk)
                 finally:
+                    self._rtcm_filter("corrections_url").reset()
                     with contextlib.suppress(Exception):
                         await src.close()
             except (TransportError, OSError) as exc:
@@ -236,18 +265,29 @@ class NmeaDevice(DeviceLink):
                 self._forward_corrections(chunk)
                 await asyncio.sleep(len(chunk) / rate)
 
-    def _forward_corrections(self, chunk: bytes) -> None:
+    def _rtcm_filter(self, source: str) -> Rtcm3Filter:
+        f = self._rtcm_filters.get(source)
+        if f is None:
+            f = self._rtcm_filters[source] = Rtcm3Filter(self.counters)
+        return f
+
+    def _forward_corrections(self, chunk: bytes, source: str = "corrections_url") -> None:
+        """Pass the whole, valid RTCM3 frames of ``chunk`` (from ``source``) to the port."""
+        frames = self._rtcm_filter(source).feed(chunk)
+        if not frames:
+            return
+        data = frames[0] if len(frames) == 1 else b"".join(frames)
         tr = self._reading
         if tr is None:
-            self.counters["corrections_dropped_bytes"] += len(chunk)
+            self.counters["corrections_dropped_bytes"] += len(data)
             return
         try:
-            tr.write_nowait(chunk)
-            self.counters["corrections_bytes"] += len(chunk)
+            tr.write_nowait(data)
+            self.counters["corrections_bytes"] += len(data)
             if self.raw is not None:
-                self.raw("tx", self.clock.now(), chunk)
+                self.raw("tx", self.clock.now(), data)
         except (TransportError, OSError):
-            self.counters["corrections_dropped_bytes"] += len(chunk)
+            self.counters["corrections_dropped_bytes"] += len(data)
 
     async def _read_loop(self) -> None:
         now = self.clock.now

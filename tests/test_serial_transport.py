@@ -64,7 +64,8 @@ def test_rtcm3_corrections_are_written_to_the_gps_port(tmp_path: Path) -> None:
     tty.setraw(slave)
     tty.setraw(master)
     path = os.ttyname(slave)
-    rtcm = bytes([0xD3, 0x00, 0x13]) + bytes(range(19)) + b"\x01\x02\x03"  # an RTCM3 frame
+    # an RTCM3 1005 frame (station coordinates), with its CRC-24Q
+    rtcm = bytes.fromhex("D300133ED7D30202980EDEEF34B4BD62AC0941986F33360B98")
     src = tmp_path / "corrections.rtcm3"
     src.write_bytes(rtcm * 20)
 

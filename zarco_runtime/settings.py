@@ -25,6 +25,7 @@ from zarco_runtime.guidance.follow import FollowSettings
 from zarco_runtime.guidance.settings import Guidance, HoldSettings
 from zarco_runtime.links.mavlink.settings import MavlinkSettings
 from zarco_runtime.links.recorder.settings import Record
+from zarco_runtime.links.shore.settings import Shore
 from zarco_runtime.navigation.ekf_config import EkfSettings
 from zarco_runtime.navigation.settings import Navigation
 from zarco_runtime.supervision.settings import Failsafe, Geofence, Supervisor
@@ -68,6 +69,7 @@ class RuntimeConfig:
     record: Record = spec(Record, doc="the recorder (MCAP of every bus message and raw chunk)")
     mavlink: MavlinkSettings = spec(MavlinkSettings, doc="MAVLink endpoint (QGroundControl, "
                                     "MAVProxy)")
+    shore: Shore = spec(Shore, doc="shore supervision over zenoh")
 
 
 __all__ = [

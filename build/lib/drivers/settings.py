@@ -23,7 +23,7 @@ class Device:
     stale_s: float = spec(1.0, "s", "no valid sentence for this long → stale", min=0.05, max=60.0)
     corrections_url: str = spec("", "", "RTCM3 corrections written to this device's port, "
                                 "from a serial port, tcp://HOST:PORT or file://PATH "
-                                "(empty: none; the shore relay comes with the shore link)")
+                                "(empty: none); only whole frames with a valid CRC-24Q pass")
     corrections_rate_bps: float = spec(4000.0, "B/s", "pace of a file:// corrections "
                                        "source", min=1.0, max=1e7)
     reopen_s: float = spec(3.0, "s", "no bytes at all for this long → close and reopen the "

@@ -100,13 +100,21 @@ class DeviceOut:
             self._task = asyncio.get_running_loop().create_task(self._drain())
 
     async def _drain(self) -> None:
+        """Write the pieces ``gap`` apart on an absolute schedule: a late wake-up
+        (a loaded machine) shortens the next gaps instead of delaying every piece
+        after it, as a device's own clock would."""
+        loop = asyncio.get_running_loop()
         try:
+            due = loop.time()
             while self._q:
                 chunks, gap = self._q.popleft()
+                due = max(due, loop.time())
                 for c in chunks:
                     self.port.write(c)
-                    if gap > 0.0:
-                        await asyncio.sleep(gap)
+                    due += gap
+                    delay = due - loop.time()
+                    if gap > 0.0 and delay > 0.0:
+                        await asyncio.sleep(delay)
         finally:
             self._task = None
 

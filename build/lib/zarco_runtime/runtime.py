@@ -33,6 +33,7 @@ from zarco_core.messages import ComponentState, HealthState, ThrusterCommand, Ve
 from zarco_runtime.control.task import ControlTask
 from zarco_runtime.links.mavlink.endpoint import MavlinkEndpoint
 from zarco_runtime.links.recorder.recorder import recorder_factory
+from zarco_runtime.links.shore.link import ShoreLink
 from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.sd_notify import Notifier, devices_opened
 from zarco_runtime.settings import RuntimeConfig
@@ -80,7 +81,8 @@ class Runtime:
         gps_var, cmp_var = dev.gps.variation_deg, dev.compass.variation_deg
         # device drivers keep their instance (and counters) across restarts
         self.gps = NmeaDevice("gps", dev.gps, self.bus, self.clock,
-                              lambda line, t: parse_gps(line, t, "gps", gps_var), self.ports)
+                              lambda line, t: parse_gps(line, t, "gps", gps_var), self.ports,
+                              rtcm=True)
         self.compass = NmeaDevice("compass", dev.compass, self.bus, self.clock,
                                   lambda line, t: parse_compass(line, t, "compass", cmp_var),
                                   self.ports)
@@ -109,6 +111,8 @@ class Runtime:
                                                    self.clock, ctx.listen))
         if cfg.mavlink.enabled:
             add("mavlink", lambda ctx: MavlinkEndpoint(cfg, self.bus, self.clock, ctx))
+        if cfg.shore.enabled:
+            add("shore", lambda ctx: ShoreLink(cfg, self.bus, self.clock, ctx))
         self.extra: list[tuple[str, Callable[[], object]]] = []
         self.notifier: Notifier | None = None
         if notify is not None:

@@ -240,3 +240,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
     register_log(sub)
 
+    from zarco_tools.shore.cli import register as register_shore
+
+    register_shore(sub)

@@ -146,7 +146,7 @@ class ControlTask:
             return ZERO
         if mode is Mode.MANUAL:
             m = self.manual.value
-            if m is None or t > m.until or m.t < d.since:
+            if m is None or t > m.until or m.t < self.entered_t:
                 self.reason = "manual: no operator command within the lease"
                 return ZERO
             self.reason = "manual"

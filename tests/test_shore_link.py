@@ -1,0 +1,278 @@
+"""The shore link in-process with the real supervisor and GPS driver (on a
+pseudo-terminal), and real zenoh client sessions on loopback: the wire
+contract's payloads, one reply per command whatever the payload, the
+operator heartbeat on the bus, RTCM from zenoh to the GPS port (only valid
+frames), and the session closed when the link stops."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import json
+import os
+import random
+import time
+import tty
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+import pytest
+import zenoh
+from shore_support import free_port
+
+from drivers.gps_parser import parse_gps
+from drivers.nmea_device import NmeaDevice
+from drivers.rtcm import frame
+from drivers.settings import Device
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.component import Supervised
+from zarco_core.config import ConfigError, build
+from zarco_core.messages import Command, Event, OperatorHeartbeat
+from zarco_runtime.links.shore.link import ShoreLink
+from zarco_runtime.links.shore.zenoh_config import client_config
+from zarco_runtime.settings import RuntimeConfig
+from zarco_runtime.supervision.supervisor import Supervisor
+
+UBX_RESET = bytes.fromhex("B56206040400FFB90200C88F")
+STATE_KEYS = {"t", "mode", "lat_deg", "lon_deg", "heading_deg", "course_deg", "speed_mps",
+              "fix", "leg", "legs", "xtrack_m", "u1", "u2", "failsafes"}
+
+
+def _config(port: int, **shore: Any) -> RuntimeConfig:
+    return build(RuntimeConfig, {"shore": {"enabled": True, "vessel": "v1",
+                                           "listen": [f"tcp/127.0.0.1:{port}"], **shore}},
+                 "test")
+
+
+Body = Callable[[Bus, Any, NmeaDevice], Awaitable[None]]
+
+
+def _run(cfg: RuntimeConfig, port: int, body: Body, gps_path: str = "loop://") -> None:
+    """The supervisor, the shore link and the GPS driver on one loop; ``body`` gets
+    the bus, an open client session (blocking calls go through an executor) and
+    the GPS driver."""
+
+    async def main() -> None:
+        bus, clock = Bus(), Clock()
+        gps = NmeaDevice("gps", Device(url=gps_path), bus, clock,
+                         lambda line, t: parse_gps(line, t, "gps"), rtcm=True)
+        comps = [Supervised("supervisor", lambda ctx: Supervisor(cfg, bus, clock, ctx), bus,
+                            clock),
+                 Supervised("shore", lambda ctx: ShoreLink(cfg, bus, clock, ctx), bus, clock)]
+        tasks = [asyncio.create_task(c.run()) for c in comps]
+        tasks.append(asyncio.create_task(gps.run()))
+        loop = asyncio.get_running_loop()
+        conf = zenoh.Config.from_json5(json.dumps(client_config(f"tcp/127.0.0.1:{port}")))
+        session = None
+        deadline = loop.time() + 10.0
+        while session is None:
+            try:
+                session = await loop.run_in_executor(None, zenoh.open, conf)
+            except zenoh.ZError:
+                if loop.time() > deadline:
+                    raise
+                await asyncio.sleep(0.1)
+        try:
+            await body(bus, session, gps)
+        finally:
+            await loop.run_in_executor(None, session.close)
+            for t in tasks:
+                t.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
+
+    asyncio.run(main())
+
+
+async def _get(session: Any, key: str, payload: bytes | str, **kw: Any) -> list[Any]:
+    loop = asyncio.get_running_loop()
+    return await loop.run_in_executor(
+        None, lambda: list(session.get(key, payload=payload, timeout=3.0, **kw)))
+
+
+def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
+    port = free_port()
+    seen: list[Command] = []
+
+    async def body(bus: Bus, s: Any, _gps: NmeaDevice) -> None:
+        bus.listen(Command, seen.append)
+        cases: list[tuple[str, bytes | str, dict[str, Any]]] = [
+            ("stop", "{}", {"ok": True, "mode": "idle", "reason": ""}),
+            ("stop", "", {"ok": True}),                                  # empty payload = {}
+            ("mode", '{"mode": "hold"}', {"ok": False, "reason": "no valid position"}),
+            ("mode", '{"mode": "sideways"}', {"ok": False}),
+            ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "not in manual mode"}),
+            ("mode", '{"mode": "manual"}', {"ok": True, "mode": "manual"}),
+            ("thrust", '{"u1": "x", "u2": 10}', {"ok": False}),
+            ("thrust", '{"u1": 10, "u2": 10}', {"ok": True, "mode": "manual"}),
+            ("fly", "{}", {"ok": False, "reason": "unknown command 'fly'"}),
+            ("stop", "not json", {"ok": False}),
+            ("stop", "[1, 2]", {"ok": False}),
+            ("stop", b"\xff\xfe", {"ok": False}),
+        ]
+        for name, payload, want in cases:
+            replies = await _get(s, f"zarco/v1/cmd/{name}", payload)
+            assert len(replies) == 1, (name, payload, replies)
+            body_ = json.loads(replies[0].ok.payload.to_bytes())
+            assert set(body_) == {"ok", "id", "mode", "reason"}
+            for k, v in want.items():
+                assert body_[k] == v, (name, payload, body_)
+            if not body_["ok"] and name != "fly":
+                assert body_["reason"]
+        # the attachment names the user (the command's source) and its id
+        r = await _get(s, "zarco/v1/cmd/stop", "{}",
+                       attachment=json.dumps({"user": "alice", "id": "abc-1"}))
+        assert json.loads(r[0].ok.payload.to_bytes())["id"] == "abc-1"
+        assert seen[-1].source == "shore:alice" and seen[-1].id == "abc-1"
+        # a wildcard query names no command: one reply, a refusal
+        r = await _get(s, "zarco/v1/cmd/*", "{}")
+        assert len(r) == 1
+        wild = json.loads(r[0].ok.payload.to_bytes())
+        assert not wild["ok"] and wild["reason"].startswith("bad request")
+        # malformed payloads never reached the supervisor; the others did, once each
+        assert len(seen) == 10
+
+    _run(_config(port), port, body)
+
+
+def test_telemetry_payloads_follow_the_contract() -> None:
+    port = free_port()
+
+    async def body(bus: Bus, s: Any, _gps: NmeaDevice) -> None:
+        got: dict[str, list[dict[str, Any]]] = {}
+        stamps: list[float] = []
+
+        def cb(sample: Any) -> None:
+            kind = str(sample.key_expr).rsplit("/", 1)[1]
+            got.setdefault(kind, []).append(json.loads(sample.payload.to_bytes()))
+            if kind == "state":
+                stamps.append(time.time())
+
+        for k in ("state", "health", "event"):
+            s.declare_subscriber(f"zarco/v1/{k}", cb)
+        await asyncio.sleep(0.3)
+        bus.publish(Event(0.0, "fault", "gps: stale: test"))
+        await asyncio.sleep(2.3)
+        st = got["state"][-1]
+        assert set(st) >= STATE_KEYS
+        assert st["mode"] == "idle" and st["lat_deg"] is None and st["failsafes"] == []
+        assert abs(st["t"] - time.time()) < 1.0  # UTC seconds
+        # 5 Hz: the gaps between states are 0.2 s
+        gaps = [b - a for a, b in itertools.pairwise(stamps)]
+        assert len(gaps) >= 8 and abs(sorted(gaps)[len(gaps) // 2] - 0.2) < 0.03
+        h = got["health"][-1]
+        assert {"t", "devices"} <= set(h)
+        assert set(h["devices"]["gps"]) >= {"state", "age_s", "ok", "bad"}
+        ev = [e for e in got["event"] if e["text"] == "gps: stale: test"]
+        assert len(ev) == 1 and {"t", "kind", "text"} <= set(ev[0])
+        assert ev[0]["kind"] == "fault"
+
+    _run(_config(port), port, body)
+
+
+def test_operator_heartbeat_reaches_the_bus() -> None:
+    port = free_port()
+
+    async def body(bus: Bus, s: Any, _gps: NmeaDevice) -> None:
+        beats: list[OperatorHeartbeat] = []
+        bus.listen(OperatorHeartbeat, beats.append)
+        loop = asyncio.get_running_loop()
+        for payload in (json.dumps({"t": time.time(), "user": "alice"}), "garbage",
+                        json.dumps({"t": time.time(), "user": "bob"})):
+            await loop.run_in_executor(None, s.put, "zarco/v1/operator", payload)
+        await asyncio.sleep(0.5)
+        assert [(b.link, b.user) for b in beats] == [("shore", "alice"), ("shore", "bob")]
+
+    _run(_config(port), port, body)
+
+
+def test_rtcm_from_zenoh_reaches_the_gps_port_only_as_valid_frames() -> None:
+    port = free_port()
+    rng = random.Random(21)
+    frames = [frame(bytes((0x3E, 0xD0)) + rng.randbytes(rng.randint(10, 600)))
+              for _ in range(6)]
+    stream = b"".join(UBX_RESET + f + rng.randbytes(200) for f in frames) + UBX_RESET
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    tty.setraw(master)
+    os.set_blocking(master, False)
+    got = bytearray()
+
+    async def body(bus: Bus, s: Any, gps: NmeaDevice) -> None:
+        loop = asyncio.get_running_loop()
+        await asyncio.sleep(0.3)
+        for i in range(0, len(stream), 333):  # chunks that cut frames anywhere
+            await loop.run_in_executor(None, s.put, "zarco/v1/rtcm", stream[i:i + 333])
+        deadline = loop.time() + 3.0
+        while len(got) < sum(map(len, frames)) and loop.time() < deadline:
+            await asyncio.sleep(0.05)
+            with contextlib.suppress(BlockingIOError):
+                got.extend(os.read(master, 65536))
+        await asyncio.sleep(0.2)
+        with contextlib.suppress(BlockingIOError):
+            got.extend(os.read(master, 65536))
+        assert gps.counters["rtcm_frames"] == len(frames)
+        # one sample larger than 16 kB (valid frames, but too much at once) is dropped
+        big = frames[0] * (17000 // len(frames[0]) + 1)
+        await loop.run_in_executor(None, s.put, "zarco/v1/rtcm", big)
+        await asyncio.sleep(0.3)
+        assert gps.counters["rtcm_frames"] == len(frames)
+
+    try:
+        _run(_config(port), port, body, gps_path=os.ttyname(slave))
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert bytes(got) == b"".join(frames)
+
+
+def test_the_session_is_closed_when_the_link_stops() -> None:
+    """After the link is cancelled its port is free again (the session was closed)."""
+    port = free_port()
+
+    async def body(bus: Bus, s: Any, _gps: NmeaDevice) -> None:
+        assert len(await _get(s, "zarco/v1/cmd/stop", "{}")) == 1
+
+    _run(_config(port), port, body)
+    with pytest.raises(zenoh.ZError):  # nobody listens there any more
+        zenoh.open(zenoh.Config.from_json5(json.dumps(
+            client_config(f"tcp/127.0.0.1:{port}")))).close()
+    _run(_config(port), port, body)  # and the port can be listened on again
+
+
+@pytest.mark.parametrize(("shore", "key", "why"), [
+    ({"listen": ["tcp/0.0.0.0:7447"]}, "shore.auth", "only when every listen endpoint is on"),
+    ({"listen": ["tcp/127.0.0.1:7447", "tcp/192.168.1.5:7447"]}, "shore.auth", "192.168.1.5"),
+    ({"listen": ["tcp/boat.local:7447"]}, "shore.auth", "loopback"),
+    ({"auth": "usrpwd", "operators": ["a"]}, "shore.users_file", "required"),
+    ({"auth": "mtls", "operators": ["a"]}, "shore.listen", "tls/ endpoints"),
+    ({"listen": ["udp/127.0.0.1:7447"]}, "shore.listen[0]", "expected one of"),
+    ({"vessel": "Boat 1"}, "shore.vessel", "[a-z0-9_-]+"),
+    ({"operators": ["a"], "viewers": ["a"]}, "shore.viewers", "one role each"),
+])
+def test_unsafe_or_incomplete_shore_settings_are_refused(shore: dict[str, Any], key: str,
+                                                         why: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        build(RuntimeConfig, {"shore": {"enabled": True, **shore}}, "zarco.toml")
+    assert err.value.key == key and err.value.file == "zarco.toml"
+    assert why in err.value.reason
+
+
+def test_usrpwd_settings_check_the_users_file(tmp_path: Any) -> None:
+    users = tmp_path / "users"
+    users.write_text("alice:pw\nbob:pw2\n")
+    base = {"enabled": True, "auth": "usrpwd", "users_file": str(users),
+            "listen": ["tcp/0.0.0.0:7447"]}
+    cfg = build(RuntimeConfig, {"shore": {**base, "operators": ["alice"],
+                                          "viewers": ["bob"]}}, "f")
+    assert cfg.shore.auth == "usrpwd"
+    with pytest.raises(ConfigError, match="not in users_file"):
+        build(RuntimeConfig, {"shore": {**base, "operators": ["carol"]}}, "f")
+    with pytest.raises(ConfigError, match="nobody could use"):
+        build(RuntimeConfig, {"shore": base}, "f")
+    users.write_text("alice\n")
+    with pytest.raises(ConfigError, match="line 1: expected user:password"):
+        build(RuntimeConfig, {"shore": {**base, "operators": ["alice"]}}, "f")
+    # a disabled link is not judged
+    build(RuntimeConfig, {"shore": {"listen": ["tcp/0.0.0.0:7447"]}}, "f")
