@@ -140,3 +140,29 @@ def test_manual_needs_its_lease_renewed() -> None:
     on = [ti for ti, u in zip(t, u1, strict=True) if u != 0.0]
     # thrust from the first command to one lease after the last, then zero
     assert on and min(on) >= 3.0 and 4.3 <= max(on) <= 4.6
+
+
+def test_mission_with_leg_speeds_and_a_start_leg_then_cleared() -> None:
+    wps = [_geo(0.0, 0.0), _geo(30.0, 0.0), _geo(30.0, -30.0)]
+    res = _sim([(3.0, "mission", {"waypoints": wps, "leg_speeds_mps": [0.8, 1.4],
+                                  "start_leg": 1}),
+                (4.0, "mission", {"waypoints": wps, "leg_speeds_mps": [0.8]}),
+                (5.0, "stop", {}),
+                (6.0, "mission", {"clear": True}),
+                (7.0, "mode", {"mode": "lines"})], 9.0)
+    a = _acks(res)
+    assert [x.ok for x in a] == [True, False, True, True, False]
+    assert a[1].reason == "leg_speeds_mps: need one speed per leg (2)"
+    assert a[4].reason == "no mission loaded"
+    d = next(x for x in res.extra["directives"] if x.mode.value == "lines")
+    assert d.start_leg == 1
+    assert d.mission is not None and [lg.speed_mps for lg in d.mission.legs] == [0.8, 1.4]
+
+
+def test_thrust_renewals_are_counted_not_announced() -> None:
+    res = _sim([(2.0, "mode", {"mode": "manual"})]
+               + [(2.5 + 0.25 * k, "thrust", {"u1": 20.0, "u2": 20.0}) for k in range(8)],
+               6.0)
+    assert all(a.ok for a in _acks(res)) and len(_acks(res)) == 9
+    acks = [e.text for e in res.extra["events"] if e.kind == "ack"]
+    assert acks == ["mode from scenario: accepted"]
