@@ -41,7 +41,9 @@ def test_zarco_run_under_the_journal_prefixes_priorities(tmp_path: Path) -> None
         st = os.fstat(err.fileno())
         env = dict(os.environ, JOURNAL_STREAM=f"{st.st_dev}:{st.st_ino}")
         p = subprocess.Popen([str(BIN), "run", "--config", str(cfg)], stderr=err, env=env)
-        time.sleep(3.0)
+        end = time.monotonic() + 30.0  # until it has started (slow on a loaded machine)
+        while "supervisor started" not in log.read_text() and time.monotonic() < end:
+            time.sleep(0.1)
         p.send_signal(signal.SIGTERM)
         assert p.wait(timeout=20) == 0
     for fd in fds:

@@ -1,10 +1,12 @@
 """One runtime per device: a lock file per device, held for the process's life.
 
 Before opening anything, ``zarco run`` takes an exclusive ``flock`` on a lock
-file named after each device it drives (the resolved serial path, or the
-URL), in ``lock_dir``.  A second runtime on the same configuration (or any
-configuration sharing a device) finds the lock taken and is refused with the
-holder's pid.  The kernel drops the locks when the process dies, however it
+file named after each device it drives (its configured path or URL, as
+written: a ``/dev/serial/by-id`` or udev link is not resolved, since the device
+behind it changes when it is replugged), in ``lock_dir``.  A second runtime on
+the same configuration finds the lock taken and is refused with the holder's
+pid; one reaching the same device by another name is stopped by the port's
+exclusive open.  The kernel drops the locks when the process dies, however it
 dies, so a stale lock never blocks a restart.
 """
 
@@ -41,7 +43,7 @@ def lock_dir() -> Path:
 def _name(url: str) -> str:
     ident = url[len("serial://"):] if url.startswith("serial://") else url
     if ident.startswith("/"):
-        ident = os.path.realpath(ident)
+        ident = os.path.abspath(ident)
     safe = "".join(c if c.isalnum() or c in "-." else "_" for c in ident.strip("/"))
     return f"zarco-{safe}.lock"
 

@@ -31,9 +31,6 @@ from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext, Factory, Runnable, Supervised
 from zarco_core.messages import ComponentState, HealthState, ThrusterCommand, VesselStatus
 from zarco_runtime.control.task import ControlTask
-from zarco_runtime.links.mavlink.endpoint import MavlinkEndpoint
-from zarco_runtime.links.recorder.recorder import recorder_factory
-from zarco_runtime.links.shore.link import ShoreLink
 from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.sd_notify import Notifier, devices_opened
 from zarco_runtime.settings import RuntimeConfig
@@ -91,7 +88,11 @@ class Runtime:
         self._thrusters: ThrusterDriver | None = None
         self.components: list[Supervised] = []
         add = self._add
+        # the links are imported only when enabled (zenoh, pymavlink and mcap are
+        # heavy to load; a runtime without them starts faster)
         if cfg.record.enabled:
+            from zarco_runtime.links.recorder.recorder import recorder_factory
+
             add("recorder", recorder_factory(cfg, self.bus, self.clock, self.boot, lambda: (
                 self.gps, self.compass, self.buoy, self._thrusters), self.config_dir))
         if dev.gps.enabled:
@@ -110,8 +111,12 @@ class Runtime:
             add("local", lambda ctx: ControlSocket(cfg.supervisor.control_socket, self.bus,
                                                    self.clock, ctx.listen))
         if cfg.mavlink.enabled:
+            from zarco_runtime.links.mavlink.endpoint import MavlinkEndpoint
+
             add("mavlink", lambda ctx: MavlinkEndpoint(cfg, self.bus, self.clock, ctx))
         if cfg.shore.enabled:
+            from zarco_runtime.links.shore.link import ShoreLink
+
             add("shore", lambda ctx: ShoreLink(cfg, self.bus, self.clock, ctx))
         self.extra: list[tuple[str, Callable[[], object]]] = []
         self.notifier: Notifier | None = None

@@ -405,7 +405,10 @@ class VesselStatus:
 
     ``utc_s`` is UTC seconds since the epoch at ``t``; ``failsafes`` the active
     failsafe conditions; ``components`` maps a component to its state and
-    restart count; ``counters`` gathers the control loop's and the bus's.
+    restart count; ``counters`` gathers the control loop's and the bus's;
+    ``home_lat_deg``/``home_lon_deg`` where ``return`` goes (None: not known
+    yet).  Published once a second and at once on every change of mode or of
+    the active failsafes.
     """
 
     t: float
@@ -418,6 +421,8 @@ class VesselStatus:
     components: dict[str, ComponentState]
     counters: dict[str, int]
     reason: str = ""
+    home_lat_deg: float | None = None
+    home_lon_deg: float | None = None
 
 
 @dataclass(slots=True)

@@ -160,6 +160,7 @@ class Supervisor:
         self.first_cmd_t: float | None = None
         self.heartbeat_t: float | None = None
         self.status_msg: VesselStatus | None = None
+        self.status_due = False
         self.last_eval = -1e9
         self.acks = {"accepted": 0, "refused": 0}
         ctx.listen(Command, self.on_command)
@@ -275,6 +276,7 @@ class Supervisor:
         self.directive_t0 = self.directive.t
         self.auv_held = False
         self.bus.publish(self.directive)
+        self.status_due = True
         where = ""
         if point is not None:
             lat, lon, _ = self.frame.to_geodetic(point[0], point[1])
@@ -337,6 +339,9 @@ class Supervisor:
         self.acks["accepted" if ok else "refused"] += 1
         ack = CommandAck(self.now(), cmd.id, cmd.source, cmd.name, ok, self.mode.value, reason)
         self.bus.publish(ack)
+        if ok and cmd.name == "thrust":
+            self.acks["thrust"] = self.acks.get("thrust", 0) + 1  # a lease renewal: counted
+            return
         self.event("ack", f"{cmd.name} from {cmd.source}: "
                    + ("accepted" if ok else f"refused: {reason}"))
 
@@ -366,8 +371,8 @@ class Supervisor:
             if mode is Mode.FOLLOW:
                 return self._follow(src)
             if mode is Mode.LINES:
-                m = self.loaded or (self.saved.mission if self.saved and
-                                    self.saved.mission.kind == "lines" else None)
+                m = self.loaded or (self.saved.mission if self.saved and not self.saved.complete
+                                    and self.saved.mission.kind == "lines" else None)
                 if m is None:
                     return "no mission loaded"
                 return self._start(m, 0, src)
@@ -428,6 +433,15 @@ class Supervisor:
         return ""
 
     def _mission(self, a: dict[str, object], src: str) -> str:
+        if a.get("clear"):
+            if self.mode is Mode.LINES:
+                return "a mission is running: stop or hold first"
+            self.loaded = None
+            if self.saved is not None and self.saved.mission.kind == "lines":
+                self.saved.complete = True  # nothing left to start or resume
+                self._save_state()
+            self.event("mission", f"loaded mission cleared by {src}")
+            return ""
         wps_raw = a.get("waypoints")
         if not isinstance(wps_raw, list) or len(wps_raw) < 2:
             return "waypoints: need a list of at least 2 [lat_deg, lon_deg]"
@@ -444,6 +458,19 @@ class Supervisor:
         vmax = self.cfg.supervisor.max_speed_mps
         if not (math.isfinite(speed) and 0.05 <= speed <= vmax):
             return f"speed_mps must be within 0.05..{vmax:g} m/s, got {a.get('speed_mps')!r}"
+        speeds_raw = a.get("leg_speeds_mps")
+        speeds: list[float] = []
+        if speeds_raw is not None:
+            if not isinstance(speeds_raw, list) or len(speeds_raw) != len(wps) - 1:
+                return f"leg_speeds_mps: need one speed per leg ({len(wps) - 1})"
+            for i, v in enumerate(speeds_raw):
+                sv = float(v)
+                if not (math.isfinite(sv) and 0.05 <= sv <= vmax):
+                    return f"leg_speeds_mps: leg {i} must be within 0.05..{vmax:g} m/s, got {v!r}"
+                speeds.append(sv)
+        start_leg = int(a.get("start_leg", 0))  # type: ignore[call-overload]
+        if not 0 <= start_leg < len(wps) - 1:
+            return f"start_leg must be within 0..{len(wps) - 2}, got {start_leg}"
         pts = [self.frame.to_ned(lat, lon) for lat, lon in wps]
         for i, p in enumerate(pts):
             if math.hypot(*p) > 50_000.0:
@@ -455,10 +482,14 @@ class Supervisor:
                 if out:
                     return f"waypoint {i} is outside the geofence ({out})"
         name = str(a.get("name", f"{len(wps)} waypoints from {src}"))
-        m = Mission("lines", legs_from_points(pts, speed), name, tuple(wps))
+        legs = legs_from_points(pts, speed)
+        if speeds:
+            legs = tuple(Leg(lg.index, lg.n0, lg.e0, lg.n1, lg.e1, v)
+                         for lg, v in zip(legs, speeds, strict=True))
+        m = Mission("lines", legs, name, tuple(wps))
         start = bool(a.get("start", True))
         if start:
-            why = self._start(m, 0, src)
+            why = self._start(m, start_leg, src)
             if why:
                 return why
         else:
@@ -553,6 +584,7 @@ class Supervisor:
                 lat, lon, _ = self.frame.to_geodetic(*p)
                 self.event("mission", f"home set at {lat:.6f}, {lon:.6f} (first position)")
         for tr in self.failsafes.evaluate(self._inputs(now)):
+            self.status_due = True
             if tr.entered:
                 self.event("failsafe", f"{tr.name}: {tr.reason}; action {tr.action} "
                            f"(condition since {now - tr.t_condition:.2f} s)")
@@ -633,13 +665,17 @@ class Supervisor:
         counters["bus_listener_errors"] = self.bus.listener_errors
         counters["commands_accepted"] = self.acks["accepted"]
         counters["commands_refused"] = self.acks["refused"]
+        home_lat = home_lon = None
+        if self.home is not None:
+            home_lat, home_lon, _ = self.frame.to_geodetic(*self.home)
         p = self.progress
         prog = MissionProgress(p.kind, p.name, p.leg, p.legs, p.complete, p.xtrack_m, p.along_m,
                                p.phase)
         return VesselStatus(now, self.clock.utc(now), self.mode.value, self.armed or
                             self.mode is not Mode.IDLE, prog,
                             sorted(self.failsafes.active), devs,
-                            self._components(), counters, self.directive.reason)
+                            self._components(), counters, self.directive.reason,
+                            home_lat, home_lon)
 
     def _components(self) -> dict[str, ComponentState]:
         """Every component's state: the runtime's account, with what the bus said."""
@@ -674,7 +710,8 @@ class Supervisor:
                                            d.point, d.reason, d.since)
                 self.bus.publish(self.directive)
                 next_directive = now + sup.directive_period_s
-            if now >= next_status:
+            if now >= next_status or self.status_due:
+                self.status_due = False
                 self.status_msg = self.snapshot(now)
                 self.bus.publish(self.status_msg)
                 next_status = now + sup.status_period_s
