@@ -34,7 +34,6 @@ from __future__ import annotations
 import math
 import re
 from datetime import date
-from typing import Any
 
 from drivers.nmea import (
     NmeaError,
@@ -45,6 +44,9 @@ from drivers.nmea import (
     split_checked,
 )
 from zarco_core.auv_messages import AcousticEvent, BuoyStatus
+
+#: what a buoy sentence gives
+BuoyMessage = AcousticEvent | BuoyStatus
 
 _TIME_RE = re.compile(r"(\d\d)(\d\d)(\d\d)(?:\.(\d{1,6}))?")
 _DATE_RE = re.compile(r"(\d\d)(\d\d)(\d\d)")
@@ -132,7 +134,7 @@ def _decode_pzbst(fields: list[str], t: float, source: str) -> BuoyStatus:
     return BuoyStatus(t, source, utc, lat, lon, volts, fault)
 
 
-def parse_buoy(line: str, t: float, source: str = "buoy") -> list[Any]:
+def parse_buoy(line: str, t: float, source: str = "buoy") -> list[BuoyMessage]:
     """Parse one buoy sentence received at runtime time ``t`` (s).
 
     Returns ``[AcousticEvent]`` for ``$PZBAE`` and ``[BuoyStatus]`` for

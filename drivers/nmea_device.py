@@ -17,9 +17,11 @@ import logging
 import random
 import time
 from collections import Counter
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
 
+from drivers.buoy_parser import BuoyMessage
+from drivers.compass_parser import CompassMessage
+from drivers.gps_parser import GpsMessage
 from drivers.nmea import NmeaError, NmeaFramer
 from drivers.rtcm import Rtcm3Filter
 from drivers.settings import Device
@@ -28,7 +30,11 @@ from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.messages import DeviceHealth, HealthState, RtcmCorrections
 
-ParseFn = Callable[[str, float], list[Any]]
+#: what an NMEA input device publishes
+DeviceMessage = GpsMessage | CompassMessage | BuoyMessage
+#: ``parse(line, t)``: a pure parser of one framed sentence received at runtime
+#: time ``t``; its messages, or ``NmeaError``
+ParseFn = Callable[[str, float], Sequence[DeviceMessage]]
 #: ``raw(direction, t, data)``: a chunk read from (``"rx"``) or written to (``"tx"``)
 #: the device at runtime time ``t`` (set by a recorder; None: nobody records)
 RawHook = Callable[[str, float, bytes], None]
