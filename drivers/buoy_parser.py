@@ -1,4 +1,5 @@
-"""The buoy's radio feed (DESIGN.md §7) → bus messages, and the matching encoders.
+"""The buoy's radio feed (the project's ``$PZBAE``/``$PZBST`` protocol, see
+docs/protocols.md) → bus messages, and the matching encoders.
 
 ::
 

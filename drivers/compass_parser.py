@@ -4,11 +4,12 @@ Pure functions: :func:`parse_compass` takes one framed line and returns a
 list of messages or raises :class:`~drivers.nmea.NmeaError`.  Any talker is
 accepted (``HC``, ``AP``, ``II``, ``TI``, ``GP``, ...).
 
-Conventions (DESIGN.md §3): headings clockwise from north, returned in
-radians normalised to [0, 2π); variation and deviation east positive;
-rate of turn positive turning to starboard (clockwise), rad/s; pitch and
-roll passed through with the sign the sentence uses (XDR convention: pitch
-positive bow up, roll positive starboard side down), radians.
+Conventions (the project's, as in :mod:`zarco_core.messages`): headings
+clockwise from north, returned in radians normalised to [0, 2π); variation
+and deviation east positive; rate of turn positive turning to starboard
+(clockwise), rad/s; pitch and roll passed through with the sign the
+sentence uses (XDR convention: pitch positive bow up, roll positive
+starboard side down), radians.
 
 Heading algebra (NMEA 0183 HDG): magnetic = sensor + deviation,
 true = magnetic + variation.

@@ -40,8 +40,8 @@ ParseFn = Callable[[str, float], Sequence[DeviceMessage]]
 RawHook = Callable[[str, float, bytes], None]
 
 #: reconnect backoff bounds (s): the jittered wait is 0.5–1 × the backoff, so
-#: never more than BACKOFF_MAX_S (under the issue's 1 s cap, with room for the
-#: first sentence of a 5 Hz device: a replugged device is read again within 1 s)
+#: never more than BACKOFF_MAX_S (half of the 1 s within which a replugged device
+#: must be read again, leaving room for the first sentence of a 5 Hz device)
 BACKOFF_MIN_S = 0.05
 BACKOFF_MAX_S = 0.5
 #: health is published at least this often (s)
