@@ -1,4 +1,5 @@
-"""The buoy's radio feed (DESIGN.md §7) → bus messages, and the matching encoders.
+"""The buoy's radio feed (the project's ``$PZBAE``/``$PZBST`` protocol, see
+docs/protocols.md) → bus messages, and the matching encoders.
 
 ::
 
@@ -34,7 +35,6 @@ from __future__ import annotations
 import math
 import re
 from datetime import date
-from typing import Any
 
 from drivers.nmea import (
     NmeaError,
@@ -45,6 +45,9 @@ from drivers.nmea import (
     split_checked,
 )
 from zarco_core.auv_messages import AcousticEvent, BuoyStatus
+
+#: what a buoy sentence gives
+BuoyMessage = AcousticEvent | BuoyStatus
 
 _TIME_RE = re.compile(r"(\d\d)(\d\d)(\d\d)(?:\.(\d{1,6}))?")
 _DATE_RE = re.compile(r"(\d\d)(\d\d)(\d\d)")
@@ -132,7 +135,7 @@ def _decode_pzbst(fields: list[str], t: float, source: str) -> BuoyStatus:
     return BuoyStatus(t, source, utc, lat, lon, volts, fault)
 
 
-def parse_buoy(line: str, t: float, source: str = "buoy") -> list[Any]:
+def parse_buoy(line: str, t: float, source: str = "buoy") -> list[BuoyMessage]:
     """Parse one buoy sentence received at runtime time ``t`` (s).
 
     Returns ``[AcousticEvent]`` for ``$PZBAE`` and ``[BuoyStatus]`` for

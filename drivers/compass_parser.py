@@ -4,11 +4,12 @@ Pure functions: :func:`parse_compass` takes one framed line and returns a
 list of messages or raises :class:`~drivers.nmea.NmeaError`.  Any talker is
 accepted (``HC``, ``AP``, ``II``, ``TI``, ``GP``, ...).
 
-Conventions (DESIGN.md §3): headings clockwise from north, returned in
-radians normalised to [0, 2π); variation and deviation east positive;
-rate of turn positive turning to starboard (clockwise), rad/s; pitch and
-roll passed through with the sign the sentence uses (XDR convention: pitch
-positive bow up, roll positive starboard side down), radians.
+Conventions (the project's, as in :mod:`zarco_core.messages`): headings
+clockwise from north, returned in radians normalised to [0, 2π); variation
+and deviation east positive; rate of turn positive turning to starboard
+(clockwise), rad/s; pitch and roll passed through with the sign the
+sentence uses (XDR convention: pitch positive bow up, roll positive
+starboard side down), radians.
 
 Heading algebra (NMEA 0183 HDG): magnetic = sensor + deviation,
 true = magnetic + variation.
@@ -26,7 +27,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
+from collections.abc import Sequence
 
 from drivers.nmea import (
     FastHandler,
@@ -41,6 +42,9 @@ from drivers.nmea import (
     wrap_2pi,
 )
 from zarco_core.messages import Attitude, Heading, RateOfTurn
+
+#: what a compass/IMU sentence gives
+CompassMessage = Heading | RateOfTurn | Attitude
 
 #: XDR transducer names for pitch and roll (upper-cased before lookup)
 PITCH_NAMES = frozenset({"PTCH", "PITCH"})
@@ -82,7 +86,7 @@ def heading_from_magnetic(t: float, source: str, sentence: str, raw_deg: float,
 
 
 def decode_hdt(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[Heading]:
     """``$--HDT,x.x,T`` true heading.  Empty heading → ``NmeaError("empty")``."""
     f = padded(fields, 1, 2, "HDT")
     field_char(f[1], "T", "HDT reference")
@@ -91,7 +95,7 @@ def decode_hdt(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_ths(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[Heading]:
     """``$--THS,x.x,m`` true heading with mode (A/E/M/S usable, V refused)."""
     f = padded(fields, 2, 2, "THS")
     mode = field_char(f[1], THS_OK_MODES + "V", "THS mode")
@@ -104,7 +108,7 @@ def decode_ths(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_hdg(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[Heading]:
     """``$--HDG,sensor,dev,E|W,var,E|W``.
 
     The sentence's own variation wins; without it the configured
@@ -119,7 +123,7 @@ def decode_hdg(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_hdm(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[Heading]:
     """``$--HDM,x.x,M`` magnetic heading; true if ``variation_deg`` is given."""
     f = padded(fields, 2, 2, "HDM")
     field_char(f[1], "M", "HDM reference")
@@ -128,7 +132,7 @@ def decode_hdm(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_rot(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[RateOfTurn]:
     """``$--ROT,x.x,A`` rate of turn, deg/min on the wire → rad/s (+ = starboard)."""
     f = padded(fields, 2, 2, "ROT")
     status = field_char(f[1], "AV", "ROT status")
@@ -141,7 +145,7 @@ def decode_rot(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_xdr(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[Attitude]:
     """``$--XDR,type,value,units,name[,...]`` transducer quadruplets.
 
     Angle transducers (type ``A``, units ``D``) named PTCH/PITCH and ROLL
@@ -190,7 +194,7 @@ _ROT_RE = re.compile(r"(-?\d+(?:\.\d+)?),A")
 
 
 def fast_hdt(talker: str, rest: str, t: float, source: str,
-             variation_deg: float | None) -> list[Any] | None:
+             variation_deg: float | None) -> list[Heading] | None:
     m = _HDT_RE.fullmatch(rest)
     if m is None:
         return None
@@ -203,7 +207,7 @@ def fast_hdt(talker: str, rest: str, t: float, source: str,
 
 
 def fast_ths(talker: str, rest: str, t: float, source: str,
-             variation_deg: float | None) -> list[Any] | None:
+             variation_deg: float | None) -> list[Heading] | None:
     m = _THS_RE.fullmatch(rest)
     if m is None:
         return None
@@ -216,7 +220,7 @@ def fast_ths(talker: str, rest: str, t: float, source: str,
 
 
 def _fast_hdm(talker: str, rest: str, t: float, source: str,
-              variation_deg: float | None) -> list[Any] | None:
+              variation_deg: float | None) -> list[Heading] | None:
     m = _HDM_RE.fullmatch(rest)
     if m is None:
         return None
@@ -228,7 +232,7 @@ def _fast_hdm(talker: str, rest: str, t: float, source: str,
 
 
 def _fast_hdg(talker: str, rest: str, t: float, source: str,
-              variation_deg: float | None) -> list[Any] | None:
+              variation_deg: float | None) -> list[Heading] | None:
     m = _HDG_RE.fullmatch(rest)
     if m is None:
         return None
@@ -248,7 +252,7 @@ def _fast_hdg(talker: str, rest: str, t: float, source: str,
 
 
 def _fast_rot(talker: str, rest: str, t: float, source: str,
-              variation_deg: float | None) -> list[Any] | None:
+              variation_deg: float | None) -> list[RateOfTurn] | None:
     m = _ROT_RE.fullmatch(rest)
     if m is None:
         return None
@@ -258,7 +262,7 @@ def _fast_rot(talker: str, rest: str, t: float, source: str,
     return [RateOfTurn(t, source, math.radians(dpm) / 60.0)]
 
 
-COMPASS_FAST: dict[str, FastHandler] = {
+COMPASS_FAST: dict[str, FastHandler[CompassMessage]] = {
     "HDG": _fast_hdg,
     "HDM": _fast_hdm,
     "HDT": fast_hdt,
@@ -266,7 +270,7 @@ COMPASS_FAST: dict[str, FastHandler] = {
     "ROT": _fast_rot,
 }
 
-COMPASS_HANDLERS: dict[str, Handler] = {
+COMPASS_HANDLERS: dict[str, Handler[CompassMessage]] = {
     "HDG": decode_hdg,
     "HDM": decode_hdm,
     "HDT": decode_hdt,
@@ -277,7 +281,7 @@ COMPASS_HANDLERS: dict[str, Handler] = {
 
 
 def parse_compass(line: str, t: float, source: str = "compass",
-                  variation_deg: float | None = None) -> list[Any]:
+                  variation_deg: float | None = None) -> Sequence[CompassMessage]:
     """Parse one compass/IMU sentence received at runtime time ``t`` (s).
 
     ``variation_deg`` (east positive) is the configured magnetic variation,

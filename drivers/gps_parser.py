@@ -62,7 +62,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
+from collections.abc import Sequence
 
 from drivers.compass_parser import decode_hdt, decode_ths, fast_hdt, fast_ths
 from drivers.nmea import (
@@ -86,7 +86,17 @@ from drivers.nmea import (
     padded,
     wrap_2pi,
 )
-from zarco_core.messages import FixQuality, GpsErrorStats, GpsFix, GpsTime, GpsVelocity
+from zarco_core.messages import (
+    FixQuality,
+    GpsErrorStats,
+    GpsFix,
+    GpsTime,
+    GpsVelocity,
+    Heading,
+)
+
+#: what a GNSS receiver's sentence gives (HDT/THS: a receiver with two antennas)
+GpsMessage = GpsFix | GpsVelocity | GpsErrorStats | GpsTime | Heading
 
 #: knots → m/s, exact (1 international nautical mile = 1852 m)
 KNOT_MPS = 1852.0 / 3600.0
@@ -169,7 +179,7 @@ def _faa(s: str, name: str) -> str | None:
 
 
 def decode_gga(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[GpsFix]:
     """``$--GGA``: time, position, quality, satellites, HDOP, altitude MSL, DGPS age."""
     f = padded(fields, 12, 14, "GGA")
     utc = field_time_s(f[0])
@@ -192,7 +202,7 @@ def decode_gga(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_rmc(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[GpsFix | GpsVelocity]:
     """``$--RMC``: a GpsFix, plus a GpsVelocity when the fix is usable.
 
     Field 12 (NMEA 2.3+) is the FAA mode; field 13 (NMEA 4.1 navigational
@@ -216,14 +226,14 @@ def decode_rmc(talker: str, fields: list[str], t: float, source: str,
     else:
         fix = FixQuality.SINGLE
     lat, lon = pos if pos is not None else (None, None)
-    out: list[Any] = [GpsFix(t, source, "RMC", talker, fix, lat, lon, utc_s=utc)]
+    out: list[GpsFix | GpsVelocity] = [GpsFix(t, source, "RMC", talker, fix, lat, lon, utc_s=utc)]
     if fix is not FixQuality.NONE and sog_kn is not None:
         out.append(GpsVelocity(t, source, "RMC", sog_kn * KNOT_MPS, _course_rad(cog_deg), utc))
     return out
 
 
 def decode_gll(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[GpsFix]:
     """``$--GLL,lat,N,lon,E,hhmmss.ss,A[,mode]``: a GpsFix (no altitude, no satellites)."""
     f = padded(fields, 6, 7, "GLL")
     pos = field_latlon(f[0], f[1], f[2], f[3])
@@ -241,7 +251,7 @@ def decode_gll(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_gns(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[GpsFix]:
     """``$--GNS``: time, position, mode per constellation, satellites, HDOP,
     altitude MSL, geoid separation, DGPS age and station, navigational status.
 
@@ -267,7 +277,7 @@ def decode_gns(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_vtg(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[GpsVelocity]:
     """``$--VTG``: speed and course over ground.
 
     Speed from knots (km/h if knots are empty).  Course true; if only the
@@ -298,7 +308,7 @@ def decode_vtg(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_gst(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[GpsErrorStats]:
     """``$--GST``: 1σ latitude / longitude / altitude errors and range RMS (m)."""
     f = padded(fields, 8, 8, "GST")
     utc = field_time_s(f[0])
@@ -315,7 +325,7 @@ def decode_gst(talker: str, fields: list[str], t: float, source: str,
 
 
 def decode_zda(talker: str, fields: list[str], t: float, source: str,
-               variation_deg: float | None = None) -> list[Any]:
+               variation_deg: float | None = None) -> list[GpsTime]:
     """``$--ZDA,hhmmss.ss,dd,mm,yyyy,zh,zm``: UTC date and time → epoch seconds."""
     f = padded(fields, 4, 6, "ZDA")
     sod = field_time_s(f[0])
@@ -368,7 +378,7 @@ _GGA_RE = re.compile(rf"{RE_TIME},{RE_POS},(\d)?,(\d\d?)?,{RE_UDEC},{RE_SDEC},M?
 
 
 def _fast_gga(talker: str, rest: str, t: float, source: str,
-              variation_deg: float | None) -> list[Any] | None:
+              variation_deg: float | None) -> list[GpsFix] | None:
     m = _GGA_RE.fullmatch(rest)
     if m is None:
         return None
@@ -412,7 +422,7 @@ _RMC_RE = re.compile(rf"{RE_TIME},([AV]),{RE_POS},{RE_UDEC},{RE_UDEC},(\d{{6}})?
 
 
 def _fast_rmc(talker: str, rest: str, t: float, source: str,
-              variation_deg: float | None) -> list[Any] | None:
+              variation_deg: float | None) -> list[GpsFix | GpsVelocity] | None:
     m = _RMC_RE.fullmatch(rest)
     if m is None:
         return None
@@ -436,7 +446,7 @@ def _fast_rmc(talker: str, rest: str, t: float, source: str,
     else:
         fix = FixQuality.SINGLE if mode is None else FAA_MODE[mode]
     lat, lon = (None, None) if pos is None else pos
-    out: list[Any] = [GpsFix(t, source, "RMC", talker, fix, lat, lon, utc_s=utc)]
+    out: list[GpsFix | GpsVelocity] = [GpsFix(t, source, "RMC", talker, fix, lat, lon, utc_s=utc)]
     if fix is not FixQuality.NONE and sog is not None:
         out.append(GpsVelocity(t, source, "RMC", sog * KNOT_MPS,
                                None if cog is None else wrap_2pi(math.radians(cog)), utc))
@@ -447,7 +457,7 @@ _VTG_RE = re.compile(rf"{RE_UDEC},T?,{RE_UDEC},M?,{RE_UDEC},N?,{RE_UDEC},K?(?:,(
 
 
 def _fast_vtg(talker: str, rest: str, t: float, source: str,
-              variation_deg: float | None) -> list[Any] | None:
+              variation_deg: float | None) -> list[GpsVelocity] | None:
     m = _VTG_RE.fullmatch(rest)
     if m is None:
         return None
@@ -479,7 +489,7 @@ _GST_RE = re.compile(rf"{RE_TIME}" + rf",{RE_UDEC}" * 7)
 
 
 def _fast_gst(talker: str, rest: str, t: float, source: str,
-              variation_deg: float | None) -> list[Any] | None:
+              variation_deg: float | None) -> list[GpsErrorStats] | None:
     m = _GST_RE.fullmatch(rest)
     if m is None:
         return None
@@ -503,7 +513,7 @@ _ZDA_RE = re.compile(rf"{RE_TIME},(\d\d),(\d\d),(\d{{4}})(?:,(-?\d\d?)?,(\d\d?)?
 
 
 def _fast_zda(talker: str, rest: str, t: float, source: str,
-              variation_deg: float | None) -> list[Any] | None:
+              variation_deg: float | None) -> list[GpsTime] | None:
     m = _ZDA_RE.fullmatch(rest)
     if m is None:
         return None
@@ -519,7 +529,7 @@ def _fast_zda(talker: str, rest: str, t: float, source: str,
     return [GpsTime(t, source, days * 86400.0 + sod)]
 
 
-GPS_FAST: dict[str, FastHandler] = {
+GPS_FAST: dict[str, FastHandler[GpsMessage]] = {
     "GGA": _fast_gga,
     "RMC": _fast_rmc,
     "VTG": _fast_vtg,
@@ -529,7 +539,7 @@ GPS_FAST: dict[str, FastHandler] = {
     "THS": fast_ths,
 }
 
-GPS_HANDLERS: dict[str, Handler] = {
+GPS_HANDLERS: dict[str, Handler[GpsMessage]] = {
     "GGA": decode_gga,
     "RMC": decode_rmc,
     "GLL": decode_gll,
@@ -543,7 +553,7 @@ GPS_HANDLERS: dict[str, Handler] = {
 
 
 def parse_gps(line: str, t: float, source: str = "gps",
-              variation_deg: float | None = None) -> list[Any]:
+              variation_deg: float | None = None) -> Sequence[GpsMessage]:
     """Parse one GNSS sentence received at runtime time ``t`` (s).
 
     Returns GpsFix / GpsVelocity / GpsErrorStats / GpsTime / Heading

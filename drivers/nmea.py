@@ -49,11 +49,11 @@ from __future__ import annotations
 import math
 import re
 import struct
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from datetime import date
 from functools import lru_cache, reduce
 from operator import xor
-from typing import Any
+from typing import TypeVar
 
 #: the two characters that start a sentence
 START_CHARS = b"$!"
@@ -504,19 +504,23 @@ def wrap_2pi(angle_rad: float) -> float:
     return 0.0 if a >= math.tau else a
 
 
+#: the messages a table of decoders produces (a union of message classes)
+M = TypeVar("M")
+
 #: a sentence decoder: (talker, fields, t, source, variation_deg) -> messages
-Handler = Callable[[str, list[str], float, str, float | None], list[Any]]
+#: (``Handler[GpsMessage]``: a decoder whose messages are among the GPS's)
+Handler = Callable[[str, list[str], float, str, float | None], Sequence[M]]
 #: a fast decoder of the common, valid layout of one sentence type: (talker,
 #: the text after the address and its comma, t, source, variation_deg) ->
 #: messages, or None to leave the sentence to the Handler (which is the
 #: reference: a fast decoder never accepts what its Handler refuses, and
 #: returns what the Handler returns)
-FastHandler = Callable[[str, str, float, str, float | None], list[Any] | None]
+FastHandler = Callable[[str, str, float, str, float | None], Sequence[M] | None]
 
 
-def dispatch(line: str, handlers: Mapping[str, Handler], t: float, source: str,
+def dispatch(line: str, handlers: Mapping[str, Handler[M]], t: float, source: str,
              variation_deg: float | None,
-             fast: Mapping[str, FastHandler] | None = None) -> list[Any]:
+             fast: Mapping[str, FastHandler[M]] | None = None) -> Sequence[M]:
     """Check ``line``, pick the handler for its sentence type and run it.
 
     ``fast`` decoders, when given, are tried first (see :data:`FastHandler`).

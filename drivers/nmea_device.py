@@ -17,9 +17,11 @@ import logging
 import random
 import time
 from collections import Counter
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
 
+from drivers.buoy_parser import BuoyMessage
+from drivers.compass_parser import CompassMessage
+from drivers.gps_parser import GpsMessage
 from drivers.nmea import NmeaError, NmeaFramer
 from drivers.rtcm import Rtcm3Filter
 from drivers.settings import Device
@@ -28,14 +30,18 @@ from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.messages import DeviceHealth, HealthState, RtcmCorrections
 
-ParseFn = Callable[[str, float], list[Any]]
+#: what an NMEA input device publishes
+DeviceMessage = GpsMessage | CompassMessage | BuoyMessage
+#: ``parse(line, t)``: a pure parser of one framed sentence received at runtime
+#: time ``t``; its messages, or ``NmeaError``
+ParseFn = Callable[[str, float], Sequence[DeviceMessage]]
 #: ``raw(direction, t, data)``: a chunk read from (``"rx"``) or written to (``"tx"``)
 #: the device at runtime time ``t`` (set by a recorder; None: nobody records)
 RawHook = Callable[[str, float, bytes], None]
 
 #: reconnect backoff bounds (s): the jittered wait is 0.5–1 × the backoff, so
-#: never more than BACKOFF_MAX_S (under the issue's 1 s cap, with room for the
-#: first sentence of a 5 Hz device: a replugged device is read again within 1 s)
+#: never more than BACKOFF_MAX_S (half of the 1 s within which a replugged device
+#: must be read again, leaving room for the first sentence of a 5 Hz device)
 BACKOFF_MIN_S = 0.05
 BACKOFF_MAX_S = 0.5
 #: health is published at least this often (s)

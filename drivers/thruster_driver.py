@@ -1,4 +1,4 @@
-"""Thruster controller driver: ``$PZTHR`` out, ``$PZTHS`` in (DESIGN.md §7).
+"""Thruster controller driver: ``$PZTHR`` out, ``$PZTHS`` in (docs/protocols.md).
 
 Each ThrusterCommand on the bus is written at once, in the publisher's
 context (a bus listener, no scheduling delay; the write is non-blocking), and

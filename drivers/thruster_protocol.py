@@ -1,4 +1,4 @@
-"""The thruster controller's protocol (DESIGN.md §7), NMEA-framed.
+"""The thruster controller's protocol (the project's own, NMEA-framed; docs/protocols.md).
 
 ::
 

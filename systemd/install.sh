@@ -3,7 +3,7 @@
 # again to upgrade; an operator's edited configuration and udev rules are kept).
 #
 #   sudo systemd/install.sh                 # install, enable and start
-#   DESTDIR=/tmp/root systemd/install.sh    # into a scratch root (packaging, tests):
+#   DESTDIR=$PWD/root systemd/install.sh    # into a scratch root (packaging, tests):
 #                                           # nothing is started, no root needed
 #
 # What it does:

@@ -4,7 +4,7 @@
 # and the zarco user (it owns them).
 #
 #   sudo systemd/uninstall.sh
-#   DESTDIR=/tmp/root systemd/uninstall.sh
+#   DESTDIR=$PWD/root systemd/uninstall.sh
 set -euo pipefail
 
 SRC="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"

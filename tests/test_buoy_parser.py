@@ -1,4 +1,4 @@
-"""The buoy feed: ``$PZBAE`` / ``$PZBST`` round trips and refusals (DESIGN.md §7)."""
+"""The buoy feed: ``$PZBAE`` / ``$PZBST`` round trips and refusals."""
 
 from __future__ import annotations
 

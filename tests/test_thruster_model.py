@@ -1,4 +1,4 @@
-"""The design thruster map f of DESIGN.md §4 and its calibration table."""
+"""The reference thruster map f of the Zarco's thrusters and its calibration table."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""$PZTHR / $PZTHS (DESIGN.md §7): encode, parse, round trips and refusals."""
+"""$PZTHR / $PZTHS (the thruster controller's protocol): encode, parse, round trips and refusals."""
 
 from __future__ import annotations
 

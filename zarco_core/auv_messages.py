@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 @dataclass(slots=True)
 class AcousticEvent:
-    """One acoustic detection reported by the buoy (``$PZBAE``, DESIGN.md §7).
+    """One acoustic detection reported by the buoy (``$PZBAE``).
 
     ``utc_epoch_s``: detection time at the listener hydrophone, UTC seconds
     since 1970 with µs resolution.  ``kind``: ``"I"`` an AUV interrogation
@@ -71,7 +71,7 @@ class TrackFlags(enum.IntFlag):
 
 @dataclass(slots=True)
 class AuvFix:
-    """One passive position fix of the AUV (DESIGN.md §6), before filtering.
+    """One passive position fix of the AUV (paper section IV), before filtering.
 
     ``emission_utc_s``: the AUV's emission time T_j of the interrogation, UTC
     seconds since 1970.  ``x_m``/``y_m``: the chosen solution (NED), and
@@ -107,7 +107,9 @@ class AuvTrack:
     (the same clock as ``t``), ``t0_utc_s`` the same instant on the acoustic
     UTC clock; (x0, y0) is the AUV's position at t0 on the fitted line.
     ``psi_auv_rad`` = atan2(vy, vx) clockwise from north, ``v_auv_mps`` = |v|,
-    ``h_auv_m`` = (vy x0 − vx y0)/v_auv (DESIGN.md §5; NaN when v_auv = 0).
+    ``h_auv_m`` = (vy x0 − vx y0)/v_auv (the cross-track offset of the
+    frame's origin from the line, + when the origin is to starboard of the
+    AUV's course; NaN when v_auv = 0).
     ``cov``: 4×4 covariance of (x0, y0, vx, vy), row-major, 16 floats.
     ``kf_*``: the constant-velocity Kalman filter's state at ``t0_utc_s``
     (m, m/s), ``kf_pos_sigma_m`` the RMS of its two position standard

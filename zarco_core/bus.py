@@ -16,6 +16,11 @@ exception and hands it to the listener's *owner* (the supervised component
 that registered it, :mod:`zarco_core.component`), which stops all its
 listeners and is restarted; a listener without an owner is logged and
 counted (``listener_errors``).
+
+Types: a message is any object with a ``t`` (:class:`Message`); messages are
+routed by their exact class, so ``bus.latest(NavState)`` is a
+``Latest[NavState]``, ``bus.subscribe(A, B)`` a ``Subscription[A | B]`` and a
+listener registered for ``Heading`` is called with a ``Heading``.
 """
 
 from __future__ import annotations
@@ -24,10 +29,22 @@ import asyncio
 import logging
 from collections import deque
 from collections.abc import Callable
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeVar, overload
 
-M = TypeVar("M")
 log = logging.getLogger("zarco.bus")
+
+
+class Message(Protocol):
+    """What the bus carries: an object (a dataclass, in practice) whose ``t`` is
+    the runtime clock time (s) at which it became valid.  The bus itself reads
+    nothing but the message's class."""
+
+    @property
+    def t(self) -> float: ...
+
+
+M = TypeVar("M", bound=Message)
+M2 = TypeVar("M2", bound=Message)
 
 
 class Listen(Protocol):
@@ -44,10 +61,25 @@ class ListenerOwner(Protocol):
     def listener_failed(self, exc: BaseException, msg: object) -> None: ...
 
 
+class _Sink(Protocol):
+    """What the bus delivers to: a subscription, a latest-value holder or a
+    listener, for the message classes in ``kinds``.
+
+    ``_put`` takes ``Any`` on purpose: the bus keeps its sinks in one table keyed
+    by message class and gives each sink only messages of its own ``kinds``
+    (exact class match), a pairing the type system cannot state; each sink's
+    own ``_put`` is precisely typed."""
+
+    @property
+    def kinds(self) -> tuple[type, ...]: ...
+
+    def _put(self, msg: Any, /) -> None: ...
+
+
 class Subscription(Generic[M]):
     """A bounded FIFO of messages of some types (drop-oldest on overflow)."""
 
-    def __init__(self, bus: Bus, kinds: tuple[type, ...], maxlen: int) -> None:
+    def __init__(self, bus: Bus, kinds: tuple[type[M], ...], maxlen: int) -> None:
         self._bus = bus
         self.kinds = kinds
         self._q: deque[M] = deque()
@@ -112,12 +144,12 @@ class Latest(Generic[M]):
         self.count += 1
 
 
-class _Listener:
+class _Listener(Generic[M]):
     __slots__ = ("_put", "kinds", "owner")
 
-    def __init__(self, kind: type, fn: Callable[[Any], None],
+    def __init__(self, kind: type[M], fn: Callable[[M], None],
                  owner: ListenerOwner | None = None) -> None:
-        self.kinds = (kind,)
+        self.kinds: tuple[type[M]] = (kind,)
         self._put = fn
         self.owner = owner
 
@@ -126,14 +158,28 @@ class Bus:
     """Routes messages by their exact dataclass type."""
 
     def __init__(self) -> None:
-        self._subs: dict[type, list[Any]] = {}
-        self._taps: list[Callable[[Any], None]] = []
+        self._subs: dict[type, list[_Sink]] = {}
+        self._taps: list[Callable[[Message], None]] = []
         self.published = 0
         self.listener_errors = 0
 
-    def subscribe(self, *kinds: type, maxlen: int = 256) -> Subscription[Any]:
-        """A queue of every message whose type is one of ``kinds``, in order."""
-        sub: Subscription[Any] = Subscription(self, kinds, maxlen)
+    @overload
+    def subscribe(self, kind: type[M], /, *, maxlen: int = 256) -> Subscription[M]: ...
+
+    @overload
+    def subscribe(self, kind: type[M], kind2: type[M2], /, *,
+                  maxlen: int = 256) -> Subscription[M | M2]: ...
+
+    @overload
+    def subscribe(self, kind: type[Message], kind2: type[Message], kind3: type[Message], /,
+                  *kinds: type[Message], maxlen: int = 256) -> Subscription[Message]: ...
+
+    def subscribe(self, *kinds: type[Message], maxlen: int = 256) -> Subscription[Any]:
+        """A queue of every message whose type is one of ``kinds``, in order.
+
+        Typed by the overloads above: one or two kinds give a subscription of
+        exactly those classes, more a subscription of any :class:`Message`."""
+        sub: Subscription[Message] = Subscription(self, kinds, maxlen)
         for k in kinds:
             self._subs.setdefault(k, []).append(sub)
         return sub
@@ -164,7 +210,7 @@ class Bus:
             self._subs[k] = [s for s in lst
                              if not (isinstance(s, _Listener) and s.owner is owner)]
 
-    def tap(self, fn: Callable[[Any], None]) -> None:
+    def tap(self, fn: Callable[[Message], None]) -> None:
         """Call ``fn(msg)`` synchronously for every message (recorders, metrics).
 
         ``fn`` must be quick and must not raise; it is for in-process
@@ -172,13 +218,13 @@ class Bus:
         """
         self._taps.append(fn)
 
-    def _unsubscribe(self, sub: Any) -> None:
+    def _unsubscribe(self, sub: _Sink) -> None:
         for k in sub.kinds:
             lst = self._subs.get(k, [])
             if sub in lst:
                 lst.remove(sub)
 
-    def publish(self, msg: Any) -> None:
+    def publish(self, msg: Message) -> None:
         """Deliver ``msg`` to every subscriber of its type; never blocks, never
         raises (a failing listener is its owner's problem)."""
         self.published += 1
@@ -193,7 +239,7 @@ class Bus:
             except Exception as exc:
                 self._failed(None, msg, exc)
 
-    def _failed(self, sub: Any, msg: object, exc: Exception) -> None:
+    def _failed(self, sub: _Sink | None, msg: object, exc: Exception) -> None:
         self.listener_errors += 1
         owner = getattr(sub, "owner", None)
         if owner is not None:

@@ -21,11 +21,11 @@ import traceback
 from collections.abc import Awaitable, Callable
 from typing import Protocol, TypeVar
 
-from zarco_core.bus import Bus
+from zarco_core.bus import Bus, Message
 from zarco_core.clock import Clock
 from zarco_core.messages import ComponentState
 
-M = TypeVar("M")
+M = TypeVar("M", bound=Message)
 
 #: restart backoff bounds (s)
 BACKOFF_MIN_S = 0.1

@@ -11,7 +11,7 @@ from zarco_core.config import spec
 
 @dataclass(slots=True)
 class LblNetworkParams:
-    """The long-baseline network as the tracker knows it (DESIGN.md §6).
+    """The long-baseline network as the tracker knows it (paper section IV).
 
     ``beacons[i] = [north_m, east_m, depth_m]``; ``beacon_ids[i]`` is beacon i's
     id on the wire (``$PZBAE`` field C; empty list = ids 1..N);

@@ -7,7 +7,7 @@ the same transformation (geodetic → ECEF → NED about the origin, and back wi
 the latitude iterated to convergence) with scalars, in a few microseconds; the
 tests compare it with :class:`LocalFrame` to well below a millimetre.
 
-Frames (DESIGN.md §3): local NED, x north, y east, metres, about the frame's
+Frames (as everywhere in the project): local NED, x north, y east, metres, about the frame's
 geodetic origin; heights are ellipsoidal metres (the runtime uses the origin's
 height for every horizontal point, as ``LocalFrame.to_ned`` does by default).
 """

@@ -6,7 +6,7 @@ message became valid.  Messages are shared by every subscriber: treat them
 as immutable.  (They are not ``frozen``: a frozen dataclass costs five times
 as much to build, and the simulation builds a few hundred per simulated
 second.)  Units are SI and angles radians unless the field name
-says otherwise (``*_deg``).  Frames follow DESIGN.md §3: local NED about the
+says otherwise (``*_deg``).  Frames, everywhere in the project: local NED about the
 configured origin (x north, y east, metres), heading ψ clockwise from north,
 body x forward / y starboard, yaw rate r positive clockwise.
 """
@@ -187,7 +187,7 @@ class NavState:
     be trusted for control.  ``gps_age_s`` is the time since the last GPS
     position the estimator fused (s; inf before the first): above a few GPS
     periods the position is dead-reckoned, and the supervisor
-    (``failsafe.gps_lost``) decides whether the vessel goes on.
+    (``failsafe.position_lost_s``) decides when the vessel stops.
     ``current_n_mps``, ``current_e_mps`` are the estimated water current (NED,
     m/s, the direction the water flows towards; 0 when not estimated).
     """

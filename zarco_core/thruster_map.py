@@ -1,4 +1,4 @@
-"""Thruster maps f (command → thrust) and their inverse f⁻¹ (DESIGN.md §5).
+"""Thruster maps f (command → thrust) and their inverse f⁻¹ (paper section III.A).
 
 A map is a calibrated, monotone, piecewise-linear table of bollard-pull
 points (command U in -100..100, thrust F in newtons) with a deadband where

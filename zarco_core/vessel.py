@@ -1,5 +1,5 @@
 """The vessel as the runtime knows it (``[vessel]``, ``[thrusters]``): the hull
-model of DESIGN.md §4 and each thruster's calibrated map f (command → thrust).
+model (paper section III) and each thruster's calibrated map f (command → thrust).
 
 Shared by the layers that model the boat: control designs its gains and
 allocates through f⁻¹ on it, navigation predicts with it.
@@ -12,8 +12,9 @@ from dataclasses import dataclass
 from zarco_core.config import spec
 
 # Bollard-pull calibration of one Zarco thruster (command → thrust, N), sampled
-# from the design curve of DESIGN.md §4 (deadband ±5, 125 N forward, 75 N
-# reverse, convex).  On the boat, replace with the thruster's measured table.
+# from the reference curve (deadband ±5, 125 N forward, 75 N reverse, convex:
+# g = 0.3 s + 0.7 s² of the command s beyond the deadband).  On the boat, replace
+# with the thruster's measured table.
 DEFAULT_TABLE_U = [
     -100.0, -90.0, -80.0, -70.0, -60.0, -50.0, -40.0, -30.0, -20.0, -15.0, -10.0, -5.0,
     5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0,
@@ -27,7 +28,7 @@ DEFAULT_TABLE_F = [
 
 @dataclass(slots=True)
 class VesselModel:
-    """The runtime's nominal model of the vessel (DESIGN.md §4), for feedforward
+    """The runtime's nominal model of the vessel (the Zarco's reference values), for feedforward
     and gain design.  Damping coefficients are negative (they oppose motion)."""
 
     m_kg: float = spec(45.0, "kg", "mass", min=1.0, max=1000.0)

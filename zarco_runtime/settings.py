@@ -2,8 +2,9 @@
 ``[runtime]`` table of a scenario).
 
 Every field carries its unit and range; :func:`zarco_core.config.build`
-validates a TOML table against these dataclasses.  Defaults are the Zarco
-values of DESIGN.md §4 and the tuned gains of the line-tracking controller.
+validates a TOML table against these dataclasses.  Defaults are the Zarco's
+reference hull and thruster model (``[vessel]``, ``[thrusters]``) and the tuned
+gains of the line-tracking controller.
 """
 
 from __future__ import annotations

@@ -2,8 +2,9 @@
 
 Cross-track error of a leg is measured from 15 m after the leg starts (along
 the line) to its end (when the next leg becomes active); a leg's overshoot is
-its largest cross-track error within its first 15 m (``overshoot_m``, the
-issue's definition); ``overshoot_outside_m`` keeps only the part on the
+its largest cross-track error within its first 15 m (``overshoot_m``: how
+far the boat swings past the new line while turning onto it);
+``overshoot_outside_m`` keeps only the part on the
 outside of the turn, which is what an anticipating turn removes (it starts
 the new line a little inside it instead).  Percentiles use the
 nearest-rank-interpolated definition of numpy.
@@ -19,7 +20,8 @@ import numpy as np
 
 from zarco_runtime.guidance.mission import Leg
 
-#: distance after a leg's start excluded from its cross-track figures (m), issue #2
+#: distance after a leg's start excluded from its cross-track figures (m): the turn onto
+#: the leg, measured separately as its overshoot
 SETTLE_M = 15.0
 
 
@@ -70,7 +72,7 @@ def xtrack_series(log: TrackLog, legs: list[Leg]) -> tuple[np.ndarray, np.ndarra
 
 
 def line_figures(log: TrackLog, legs: list[Leg]) -> dict[str, Any]:
-    """Whole-run and per-leg cross-track figures (issue #2 report keys)."""
+    """Whole-run and per-leg cross-track figures (the keys of ``zarco sim --report``)."""
     along, d, leg_idx = xtrack_series(log, legs)
     per_leg = []
     settled_all = []

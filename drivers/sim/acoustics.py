@@ -1,4 +1,4 @@
-"""Simulated long-baseline acoustics and the listening buoy (DESIGN.md §6–7).
+"""Simulated long-baseline acoustics and the listening buoy (its ``$PZBAE``/``$PZBST`` feed).
 
 The LBL cycle, on the simulation clock (s since the start of the run):
 

@@ -10,13 +10,16 @@ Conventions (shared with ``zarco_runtime.settings``):
   range ``min``/``max`` (or ``choices`` for enumerated strings);
 * angles are degrees at this edge, with ``_deg`` in the name; the models
   convert to radians inside;
-* frames per DESIGN.md §3: local NED (x north, y east) about the origin,
-  heading clockwise from north, body x forward / y starboard, r positive
-  clockwise.
+* frames as everywhere in the project: local NED (x north, y east) about the
+  origin, heading clockwise from north, body x forward / y starboard, r
+  positive clockwise.
 
-Reference values and their sources are DESIGN.md §4 (vessel model table and
-sensor-noise paragraph); each field's ``doc`` says where its default comes
-from.  Cross-field checks live in ``validate()`` methods, which raise
+Defaults are the Zarco catamaran's reference values: a hull model derived from
+published small-USV models (Fossen's Otter, Clearpath Heron/Kingfisher, the
+VRX WAM-V) and scaled so that full thrust (250 N) gives about 1.6 m/s, and the
+noise of typical RTK receivers and calibrated marine compasses; each field's
+``doc`` gives the range the tests vary it over where that matters.
+Cross-field checks live in ``validate()`` methods, which raise
 ``ValueError("key: reason")`` as the config loader expects.
 """
 
@@ -28,7 +31,7 @@ from typing import Any
 
 from zarco_core.config import spec
 
-#: GPS fix modes a scenario may ask for (DESIGN.md §4 sensor noise)
+#: GPS fix modes a scenario may ask for (each has its own noise below)
 FIX_MODES = ("none", "single", "dgps", "rtk_float", "rtk_fixed")
 #: Sentences the simulated GPS can send at its full rate; GST and ZDA have their own rates.
 GPS_RATE_SENTENCES = ("GGA", "RMC", "VTG")
@@ -57,60 +60,60 @@ def _p(default: float | int | bool | str, unit: str, doc: str, *, lo: float | No
 
 @dataclass(slots=True)
 class VesselParams:
-    """3-DOF rigid body + hydrodynamics of DESIGN.md §4 (paper III).
+    """3-DOF rigid body + hydrodynamics of the paper's model (section III).
 
     Hydrodynamic derivatives follow SNAME/Fossen notation and sign: added-mass
     and damping coefficients are negative, so that e.g. ``X_u u`` opposes the
-    surge speed.  Source: DESIGN.md §4 table (scaled from Otter, Heron, WAM-V
-    so that 250 N gives 1.60 m/s).
+    surge speed.  Defaults: the Zarco reference hull (scaled from Otter, Heron,
+    WAM-V so that 250 N gives 1.60 m/s: 25 u + 82 u² = 250 at u = 1.60).
     """
 
-    m_kg: float = _p(45.0, "kg", "mass (70 with payload); DESIGN.md §4", lo=1.0, hi=500.0)
-    iz_kgm2: float = _p(9.0, "kg m²", "yaw moment of inertia; DESIGN.md §4", lo=0.01, hi=1000.0)
-    x_udot: float = _p(-4.5, "kg", "surge added mass X_u'; DESIGN.md §4", lo=-1000.0, hi=0.0)
-    y_vdot: float = _p(-67.5, "kg", "sway added mass Y_v'; DESIGN.md §4", lo=-1000.0, hi=0.0)
-    n_rdot: float = _p(-15.3, "kg m²", "yaw added inertia N_r'; DESIGN.md §4",
+    m_kg: float = _p(45.0, "kg", "mass (70 with payload)", lo=1.0, hi=500.0)
+    iz_kgm2: float = _p(9.0, "kg m²", "yaw moment of inertia", lo=0.01, hi=1000.0)
+    x_udot: float = _p(-4.5, "kg", "surge added mass X_u'", lo=-1000.0, hi=0.0)
+    y_vdot: float = _p(-67.5, "kg", "sway added mass Y_v'", lo=-1000.0, hi=0.0)
+    n_rdot: float = _p(-15.3, "kg m²", "yaw added inertia N_r'",
                        lo=-1000.0, hi=0.0)
-    x_u: float = _p(-25.0, "N s/m", "linear surge damping X_u; DESIGN.md §4", lo=-1e4, hi=0.0)
-    x_uu: float = _p(-82.0, "N s²/m²", "quadratic surge damping X_|u|u; DESIGN.md §4",
+    x_u: float = _p(-25.0, "N s/m", "linear surge damping X_u", lo=-1e4, hi=0.0)
+    x_uu: float = _p(-82.0, "N s²/m²", "quadratic surge damping X_|u|u",
                      lo=-1e4, hi=0.0)
-    y_v: float = _p(-112.5, "N s/m", "linear sway damping Y_v; DESIGN.md §4", lo=-1e4, hi=0.0)
-    y_vv: float = _p(-150.0, "N s²/m²", "quadratic sway damping Y_|v|v; DESIGN.md §4",
+    y_v: float = _p(-112.5, "N s/m", "linear sway damping Y_v", lo=-1e4, hi=0.0)
+    y_vv: float = _p(-150.0, "N s²/m²", "quadratic sway damping Y_|v|v",
                      lo=-1e4, hi=0.0)
-    n_r: float = _p(-24.3, "N m s", "linear yaw damping N_r; DESIGN.md §4", lo=-1e4, hi=0.0)
-    n_rr: float = _p(-250.0, "N m s²", "quadratic yaw damping N_|r|r; DESIGN.md §4",
+    n_r: float = _p(-24.3, "N m s", "linear yaw damping N_r", lo=-1e4, hi=0.0)
+    n_rr: float = _p(-250.0, "N m s²", "quadratic yaw damping N_|r|r",
                      lo=-1e4, hi=0.0)
-    b_m: float = _p(0.38, "m", "lateral offset ±b of the thrusters from the centre line; "
-                    "DESIGN.md §4", lo=0.01, hi=5.0)
-    l_m: float = _p(0.65, "m", "distance l of the thrusters aft of the centre of mass; "
-                    "DESIGN.md §4", lo=0.0, hi=5.0)
+    b_m: float = _p(0.38, "m", "lateral offset ±b of the thrusters from the centre line",
+                    lo=0.01, hi=5.0)
+    l_m: float = _p(0.65, "m", "distance l of the thrusters aft of the centre of mass",
+                    lo=0.0, hi=5.0)
 
 
 @dataclass(slots=True)
 class ThrusterParams:
     """Thruster map f, its per-thruster deviations, lag and status model.
 
-    f(U) per DESIGN.md §4: 0 for |U| ≤ deadband, otherwise with
+    f(U), the reference thrust curve: 0 for |U| ≤ deadband, otherwise with
     s = (|U| − deadband)/(100 − deadband), g = 0.3 s + 0.7 s²,
     F = fwd_max_n g (U > 0) or −rev_max_n g (U < 0).  Thruster i gives
     f1 = (1 + mismatch) f, f2 = (1 − mismatch) f, pointing φ_i to starboard of
     the body x axis.
     """
 
-    fwd_max_n: float = _p(125.0, "N", "forward thrust per thruster at U=+100; DESIGN.md §4",
+    fwd_max_n: float = _p(125.0, "N", "forward thrust per thruster at U=+100",
                           lo=0.0, hi=5000.0)
-    rev_max_n: float = _p(75.0, "N", "reverse thrust magnitude per thruster at U=−100; "
-                          "DESIGN.md §4", lo=0.0, hi=5000.0)
-    deadband: float = _p(5.0, "%", "command deadband |U| ≤ this gives no thrust; DESIGN.md §4",
+    rev_max_n: float = _p(75.0, "N", "reverse thrust magnitude per thruster at U=−100",
+                          lo=0.0, hi=5000.0)
+    deadband: float = _p(5.0, "%", "command deadband |U| ≤ this gives no thrust",
                          lo=0.0, hi=50.0)
-    lag_s: float = _p(0.15, "s", "first-order thrust time constant (0.1–0.2 s, DESIGN.md §4); "
+    lag_s: float = _p(0.15, "s", "first-order thrust time constant (0.1–0.2 s for such thrusters); "
                       "≥ 0.02 s keeps RK4 at dt ≤ 0.01 s accurate and stable", lo=0.02, hi=5.0)
     phi1_deg: float = _p(0.0, "deg", "port thruster misalignment, positive to starboard "
-                         "(0 nominal, ±3° in tests; DESIGN.md §4)", lo=-15.0, hi=15.0)
+                         "(0 nominal, ±3° in tests)", lo=-15.0, hi=15.0)
     phi2_deg: float = _p(0.0, "deg", "starboard thruster misalignment, positive to starboard",
                          lo=-15.0, hi=15.0)
     mismatch: float = _p(0.0, "", "Δf as a fraction of f: f1 = (1+Δ) f, f2 = (1−Δ) f "
-                         "(0 nominal, up to 0.1 in tests; DESIGN.md §4)", lo=-0.5, hi=0.5)
+                         "(0 nominal, up to 0.1 in tests)", lo=-0.5, hi=0.5)
     rpm_max: float = _p(3000.0, "rpm", "propeller speed at full thrust (status only)",
                         lo=1.0, hi=1e5)
     amps_max_a: float = _p(20.0, "A", "motor current at full thrust (status only)",
@@ -119,7 +122,7 @@ class ThrusterParams:
 
 @dataclass(slots=True)
 class CurrentParams:
-    """Constant, uniform water current (DESIGN.md §4: 0–0.5 m/s, constant over a run)."""
+    """Constant, uniform water current (0–0.5 m/s where the Zarco works, constant over a run)."""
 
     speed_mps: float = _p(0.0, "m/s", "current speed", lo=0.0, hi=3.0)
     direction_deg: float = _p(0.0, "deg", "direction the water flows TOWARDS, clockwise "
@@ -143,7 +146,7 @@ class DisturbanceParams:
 
 @dataclass(slots=True)
 class GpsParams:
-    """RTK GNSS receiver (NMEA 0183).  Noise per DESIGN.md §4, 1σ per horizontal axis.
+    """RTK GNSS receiver (NMEA 0183).  Noise 1σ per horizontal axis.
 
     Position error = white noise with the fix mode's σ plus, for ``single`` and
     ``rtk_float``, a slowly drifting Gauss–Markov bias.  Both biases evolve all
@@ -164,9 +167,9 @@ class GpsParams:
     sigma_rtk_float_m: float = _p(0.3, "m", "white noise, RTK float (0.2–0.5 m)",
                                   lo=0.0, hi=100.0)
     sigma_dgps_m: float = _p(0.5, "m", "white noise, DGPS", lo=0.0, hi=100.0)
-    sigma_single_m: float = _p(1.5, "m", "white noise, single point (DESIGN.md §4)",
+    sigma_single_m: float = _p(1.5, "m", "white noise, single point",
                                lo=0.0, hi=100.0)
-    single_bias_m: float = _p(1.5, "m", "1σ drifting bias, single point (DESIGN.md §4)",
+    single_bias_m: float = _p(1.5, "m", "1σ drifting bias, single point",
                               lo=0.0, hi=100.0)
     single_bias_tau_s: float = _p(300.0, "s", "correlation time of the single-point bias",
                                   lo=1.0, hi=1e6)
@@ -174,7 +177,7 @@ class GpsParams:
     float_bias_tau_s: float = _p(60.0, "s", "correlation time of the RTK-float bias",
                                  lo=1.0, hi=1e6)
     speed_sigma_mps: float = _p(0.05, "m/s", "white noise on each of the N/E velocity "
-                                "components behind SOG/COG (DESIGN.md §4)", lo=0.0, hi=10.0)
+                                "components behind SOG/COG", lo=0.0, hi=10.0)
     alt_m: float = _p(0.0, "m", "antenna altitude reported in GGA", lo=-1000.0, hi=10000.0)
     num_sats: int = _p(14, "", "satellites in use (GGA)", lo=0, hi=99)
     hdop: float = _p(0.7, "", "horizontal dilution of precision (GGA)", lo=0.0, hi=99.9)
@@ -193,7 +196,7 @@ class GpsParams:
 class CompassParams:
     """Magnetic compass with gyro and pitch/roll (NMEA HDG, ROT, XDR).
 
-    Noise per DESIGN.md §4: compass 0.5–1° noise and 1–3° bias after
+    Typical of a calibrated marine compass and MEMS gyro: 0.5–1° noise and 1–3° bias after
     calibration; gyro noise density 3.4e-4 rad/s/√Hz, turn-on bias 0.5 °/s.
     """
 
@@ -208,7 +211,7 @@ class CompassParams:
     gyro_noise_density_rps_rthz: float = _p(3.4e-4, "rad/s/√Hz", "gyro white-noise density "
                                             "(one-sided)", lo=0.0, hi=1.0)
     gyro_bias_dps: float = _p(0.5, "deg/s", "turn-on gyro bias magnitude, fixed per run, "
-                              "sign from the seed", lo=0.0, hi=100.0)
+                              "sign drawn from the run's random seed", lo=0.0, hi=100.0)
     pitch_noise_deg: float = _p(0.2, "deg", "1σ white pitch noise", lo=0.0, hi=45.0)
     roll_noise_deg: float = _p(0.2, "deg", "1σ white roll noise", lo=0.0, hi=45.0)
 

@@ -1,4 +1,4 @@
-"""The design thruster map f (command → thrust) of DESIGN.md §4.
+"""The reference thruster map f (command → thrust) of the Zarco's thrusters.
 
 ``f(U) = 0`` for ``|U| ≤ deadband``; otherwise, with
 ``s = (|U| − deadband)/(100 − deadband)`` and ``g = 0.3 s + 0.7 s²``,
@@ -15,9 +15,9 @@ from collections.abc import Sequence
 
 from drivers.sim.params import ThrusterParams
 
-#: full-scale command (normalised units); DESIGN.md §4 / §7
+#: full-scale command (normalised units, as on the wire in $PZTHR)
 U_MAX = 100.0
-#: linear and quadratic weights of the normalised thrust curve g(s); DESIGN.md §4
+#: linear and quadratic weights of the normalised thrust curve g(s)
 G_LIN = 0.3
 G_QUAD = 0.7
 

@@ -1,12 +1,12 @@
-"""3-DOF surface-vessel model of DESIGN.md §4 (paper III), fixed-step RK4.
+"""3-DOF surface-vessel model of the paper (section III), fixed-step RK4.
 
-Frames (DESIGN.md §3): position (x, y) = (north, east) metres in the local NED
+Frames (the project's conventions): position (x, y) = (north, east) metres in the local NED
 frame; heading ψ clockwise from north; body velocities (u, v) forward and
 starboard *relative to the water*; yaw rate r positive clockwise (seen from
 above, z down).  The current (c_x, c_y) is constant and uniform, so the
 water-relative formulation is exact: it only enters the kinematics.
 
-Dynamics (added mass on the left, rigid-body Coriolis as in the design)::
+Dynamics (added mass on the left, rigid-body Coriolis as in the paper)::
 
     (m − X_u') u' =  m v r + X_u u + X_|u|u |u| u + X_act + X_dist
     (m − Y_v') v' = −m u r + Y_v v + Y_|v|v |v| v + Y_act + Y_dist
@@ -16,14 +16,14 @@ Dynamics (added mass on the left, rigid-body Coriolis as in the design)::
 
 Actuation, thruster 1 (port) at body (−l, −b), thruster 2 (starboard) at
 (−l, +b), each pointing φ_i to starboard of the body x axis (small angles, as
-in the design)::
+in the paper)::
 
     X_act = F1 + F2     Y_act = F1 φ1 + F2 φ2     N_act = b(F1 − F2) − l(F1 φ1 + F2 φ2)
 
 N_act is the z component of Σ r_i × F_i with r_i = (−l, ∓b), F_i = F_i(1, φ_i):
 x F_y − y F_x = −l F_i φ_i ± b F_i, so F1 > F2 gives N > 0, r > 0: the boat
 turns to starboard (clockwise).  The added-mass Coriolis/Munk terms are left
-out, as in the design's equations.
+out, as in the paper's equations.
 
 The step is written with plain floats and ``math`` (numpy on an 8-element
 state is several times slower than this); commands and the disturbance are

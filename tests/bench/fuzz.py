@@ -6,7 +6,7 @@ Seed corpus: every sentence of ``tests/data/gpsd-logs/*.log`` (GPSD's real
 captures: GGA, RMC, VTG, GST, ZDA, HDT, HDM, ROT, XDR, GSV, ...) plus the
 sentences the project's own devices speak and no capture holds: the
 simulated compass's HDG/ROT/XDR and ``$PZTHR``/``$PZTHS`` of the thruster
-controller (DESIGN.md §7).
+controller.
 
 Each mutated line is one to three of: bit flips, truncation, insertion of
 random bytes (printable or binary), deletion, field swap / duplication /

@@ -1,8 +1,8 @@
-"""Thrust allocation: X_act, N_act → F1, F2 → U1, U2 (DESIGN.md §5).
+"""Thrust allocation: X_act, N_act → F1, F2 → U1, U2 (paper section III.A).
 
 With N_act = b(F1 − F2) and X_act = F1 + F2 (thrusters at ±b), the consistent
 split is F1 = X/2 + N/(2b), F2 = X/2 − N/(2b) (the paper prints N/b, which
-doubles the moment actually produced; checked in tests/test_allocation.py).
+doubles the moment actually produced; checked in tests/test_thruster_map_allocation.py).
 Port thruster 1 sits at y = −b: F1 > F2 yaws the boat clockwise (to starboard).
 
 Saturation: yaw authority is what keeps the boat on its line, so the

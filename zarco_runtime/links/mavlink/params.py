@@ -174,7 +174,7 @@ class ParamTable:
         return "", old, new
 
     def describe(self, p: Param) -> str:
-        """One line of the parameter table (README)."""
+        """One line of the parameter table (docs/protocols.md, MAVLink)."""
         rng = (" | ".join(f"{i} {c}" for i, c in enumerate(p.choices)) if p.choices
                else f"{p.lo:g} … {p.hi:g} {p.unit}".rstrip())
         return f"| `{p.name}` | `{p.section}.{p.field}` | {rng} | {p.doc} |"

@@ -1,1 +1,0 @@
-"""Supervision: the vessel's mode, commands and failsafes."""
