@@ -191,3 +191,18 @@ def test_heading_on_the_first_leg_from_rest(seed: int) -> None:
     assert off["nav_heading_first_leg_rms_deg"] > 2.0 * rep["nav_heading_first_leg_rms_deg"]
     assert 1.5 <= rep["nav_nees_mean"] <= 12.0
     assert rep["xtrack_rms_m"] < 0.06
+
+
+def test_the_joint_update_inverse_handles_any_number_of_rows() -> None:
+    """Five or more measurement rows of one instant (GPS position, velocity and a
+    heading together) fall back from the closed forms to a general inverse."""
+    import numpy as np
+
+    from zarco_runtime.navigation.ekf import _spd_inverse
+
+    rng = np.random.default_rng(3)
+    for n in range(1, 8):
+        m = rng.normal(size=(n, n))
+        a = m @ m.T + n * np.eye(n)
+        inv = np.array(_spd_inverse(a.tolist()))
+        assert np.allclose(inv @ a, np.eye(n), atol=1e-9), n

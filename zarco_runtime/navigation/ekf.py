@@ -1439,13 +1439,16 @@ def _inv2(p: float, q: float, r: float) -> tuple[float, float, float]:
 
 
 def _spd_inverse(a: list[list[float]]) -> list[list[float]]:
-    """Inverse of a small (1–4) symmetric positive-definite matrix (nested lists), in
-    closed form by 2×2 blocks: a joint update's few rows cost less so than any
+    """Inverse of a small symmetric positive-definite matrix (nested lists): 1–4 rows in
+    closed form by 2×2 blocks (more: numpy): a joint update's few rows cost less so than any
     numpy.linalg call.  S = [[A, B], [Bᵀ, D]], M = A⁻¹ B, W = (D − Bᵀ M)⁻¹:
     S⁻¹ = [[A⁻¹ + M W Mᵀ, −M W], [−W Mᵀ, W]]."""
     n = len(a)
     if n == 1:
         return [[1.0 / a[0][0]]]
+    if n > 4:  # more measurements of one instant than the closed forms cover
+        inv: list[list[float]] = np.linalg.inv(np.array(a)).tolist()
+        return inv
     r0, r1 = a[0], a[1]
     ia, ib, id_ = _inv2(r0[0], r0[1], r1[1])
     if n == 2:
