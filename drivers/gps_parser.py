@@ -29,9 +29,12 @@ RMS [0, ``RMS_MAX_M``] and orientation [0, 360]; time of day
 Field counts follow GPSD: a sentence may end early, before fields that
 would be empty (older or terse receivers: an RMC without FAA mode, a GGA
 without DGPS station, a GLL without mode); the missing trailing fields
-read as empty.  A sentence shorter than the fields its type needs (GGA 12,
-RMC 7, GLL 6, GNS 12, VTG 5, GST 8, ZDA 4) is refused as ``field``: the
-remaining fields are never shifted into other meanings.
+read as empty.  A sentence shorter than the fields its type needs (RMC 7,
+GLL 6, GNS 12, VTG 5, GST 8, ZDA 4) is refused as ``field``: the remaining
+fields are never shifted into other meanings.  One step beyond GPSD (which
+needs all 12 GGA fields): a GGA that ends right after its fix quality, as
+some terse receivers send it, is accepted with its quality, the satellite
+count, HDOP and altitude unknown.
 
 Fix class
 ---------
@@ -181,7 +184,10 @@ def _faa(s: str, name: str) -> str | None:
 def decode_gga(talker: str, fields: list[str], t: float, source: str,
                variation_deg: float | None = None) -> list[GpsFix]:
     """``$--GGA``: time, position, quality, satellites, HDOP, altitude MSL, DGPS age."""
-    f = padded(fields, 12, 14, "GGA")
+    # a terse receiver may end the sentence right after the fix quality: accepted,
+    # with satellites, HDOP and altitude unknown (GPSD itself needs all 12 fields)
+    terse = len(fields) < 7
+    f = padded(fields, 6, 14, "GGA")
     utc = field_time_s(f[0])
     pos = field_latlon(f[1], f[2], f[3], f[4])
     q = field_int_range(f[5], "GGA quality", 0, 9)
@@ -196,7 +202,9 @@ def decode_gga(talker: str, fields: list[str], t: float, source: str,
     if pos is None:
         return [GpsFix(t, source, "GGA", talker, FixQuality.NONE, None, None, alt, utc,
                        nsat, hdop, age)]
-    few = talker in _GP_GN and (nsat or 0) < 3
+    # too few satellites in use is no fix (as GPSD); a count the receiver does not
+    # send at all (a terse GGA) says nothing either way
+    few = talker in _GP_GN and not terse and (nsat or 0) < 3
     fix = FixQuality.NONE if q is None or few else _GGA_QUALITY[q]
     return [GpsFix(t, source, "GGA", talker, fix, pos[0], pos[1], alt, utc, nsat, hdop, age)]
 

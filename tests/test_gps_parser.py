@@ -264,7 +264,7 @@ def test_trailing_fields_left_off_read_as_empty() -> None:
 
 
 @pytest.mark.parametrize("body", [
-    "GPGGA,120000,4807.038,N,01131.324,E,1,08,0.9,545.4,M,46.9",  # 11 fields, need 12
+    "GPGGA,120000,4807.038,N,01131.324,E",  # 5, need 6 (up to the fix quality)
     "GPRMC,120000,A,4807.038,N,01131.324,E",  # 6, need 7
     "GPGLL,4807.038,N,01131.324,E,120000",  # 5, need 6
     "GNGNS,120000,4807.038,N,01131.324,E,AA,08,0.9,545.4,46.9",  # 11, need 12
@@ -527,7 +527,7 @@ def test_malformed_letters_and_fields_are_refused(stype: str, k: int, value: str
     ("$GPGGA,120000,4807.038,N,01131.324,E,1,08,0.9,545.4,M,46.9,M,,", "no_checksum"),
     ("$GPGGA,120000,4807.038,N,01131.324,E,1,08,0.9,545.4,M,46.9,M,,*00", "checksum"),
     ("GPGGA,120000,4807.038,N,01131.324,E,1,08,0.9,545.4,M,46.9,M,,*00", "framing"),
-    (format_sentence("GPGGA,120000,4807.038,N,01131.324,E,1").decode(), "field"),
+    (format_sentence("GPGGA,120000,4807.038,N,01131.324,E").decode(), "field"),
     (format_sentence("GPGGA,120000,4807.038,X,01131.324,E,1,08,0.9,5,M,4,M,,").decode(),
      "field"),
     (format_sentence("GPGGA,120000,4867.038,N,01131.324,E,1,08,0.9,5,M,4,M,,").decode(),
@@ -567,3 +567,25 @@ def test_garbage_never_escapes_as_another_exception() -> None:
                     line = format_sentence(body).decode().strip()
                 with contextlib.suppress(NmeaError):
                     parse_gps(line, 0.0)
+
+
+def _with_checksum(body: str) -> str:
+    cs = 0
+    for ch in body:
+        cs ^= ord(ch)
+    return f"${body}*{cs:02X}"
+
+
+def test_a_terse_gga_ending_after_the_fix_quality_is_accepted() -> None:
+    """Some receivers end GGA right after the fix quality: the fix is taken, with the
+    satellites, HDOP and altitude unknown; one field shorter is refused."""
+    (fix,) = parse_gps(_with_checksum("GPGGA,123519.00,4807.038,N,01131.000,E,4"), 1.0)
+    assert fix.fix is FixQuality.RTK_FIXED
+    assert fix.lat_deg == pytest.approx(48.1173) and fix.lon_deg == pytest.approx(11.516667)
+    assert fix.num_sats is None and fix.hdop is None and fix.alt_m is None
+    with pytest.raises(NmeaError) as e:
+        parse_gps(_with_checksum("GPGGA,123519.00,4807.038,N,01131.000,E"), 1.0)
+    assert e.value.reason == "field"
+    # a sentence that carries the satellite field, empty, still says "too few"
+    (full,) = parse_gps(_with_checksum("GPGGA,123519.00,4807.038,N,01131.000,E,1,,,,,,,,"), 1.0)
+    assert full.fix is FixQuality.NONE
