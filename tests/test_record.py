@@ -1,6 +1,7 @@
 """The recorder on simulations: everything on the bus and every raw device chunk is
 in the MCAP file with a JSON schema per type; the Foxglove map topics are there;
-a replay of the raw bytes gives back the navigation and the AUV track exactly;
+a replay of the raw bytes and the thruster commands sent gives back the
+navigation and the AUV track exactly, and a tuning change shows;
 rotation, the free-space floor and a stalled writer never stop the runtime."""
 
 from __future__ import annotations

@@ -335,8 +335,10 @@ class ReplayResult:
     #: the thruster commands recorded, and those the replay's estimator took
     recorded_commands: list[ThrusterCommand] = field(default_factory=list)
     commands: list[ThrusterCommand] = field(default_factory=list)
-    #: a recording cut short (its writer killed): the time of its last record
+    #: a recording cut short (its writer killed): the time of its last input
     cut_t: float | None = None
+    #: of ``wall_seconds``, the time spent reading the recording (s)
+    read_seconds: float = 0.0
 
     @property
     def speed(self) -> float:
@@ -349,6 +351,7 @@ def replay(rec: Recording, overrides: list[str] | None = None,
     w0 = time.perf_counter()
     cfg = replay_config(rec, overrides or [], record)
     inp = load_inputs(rec)
+    read_s = time.perf_counter() - w0
     events = inp.events
     boot_d = rec.boot
     mission = boot_d.get("mission")
@@ -414,11 +417,13 @@ def replay(rec: Recording, overrides: list[str] | None = None,
     wall = time.perf_counter() - w0
     lost = sum(ports.lost.values()) + sum(ln.lost for ln in ports.links.values())
     n_chunks = sum(v for k, v in inp.counts.items() if k.startswith("rx:"))
+    # a recording cut short may lack the outputs of its last inputs
     cut = bool(rec.truncated) or not all(rec.finished.values())
+    cut_t = (events[-1][0] if events else inp.t_last) if cut else None
     return ReplayResult(cfg, inp.recorded, replayed, n_chunks, end - start, wall,
                         ports.written.get("thrusters", []), inp.thruster_tx,
                         dict(inp.counts), late[0], lost, inp.restamped, inp.restamp_max_s,
-                        inp.commands, commands, inp.t_last if cut else None)
+                        inp.commands, commands, cut_t, read_s)
 
 
 class _Done(Exception):
@@ -492,6 +497,7 @@ def report(res: ReplayResult) -> dict[str, Any]:
     return {
         "chunks": res.chunks, "sim_seconds": round(res.sim_seconds, 3),
         "wall_seconds": round(res.wall_seconds, 3), "speed_x_realtime": round(res.speed, 1),
+        "read_seconds": round(res.read_seconds, 3),
         "inputs": res.inputs, "late": res.late, "lost": res.lost,
         "restamped": res.restamped, "restamp_max_s": float(f"{res.restamp_max_s:.3g}"),
         "cut_short": cut is not None,
