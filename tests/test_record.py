@@ -1,6 +1,7 @@
 """The recorder on simulations: everything on the bus and every raw device chunk is
 in the MCAP file with a JSON schema per type; the Foxglove map topics are there;
-a replay of the raw bytes gives back the navigation and the AUV track exactly;
+a replay of the raw bytes and the thruster commands sent gives back the
+navigation and the AUV track exactly, and a tuning change shows;
 rotation, the free-space floor and a stalled writer never stop the runtime."""
 
 from __future__ import annotations
@@ -116,16 +117,60 @@ def test_foxglove_map_topics(follow: Any) -> None:
     assert min(b - a for a, b in itertools.pairwise(ts)) >= 0.2 - 1e-6
 
 
+def _exact(r: dict[str, Any], *keys: str) -> None:
+    for key in keys:
+        assert r[key]["exact"], (key, r[key])
+        assert r[key]["recorded"] > 10, (key, r[key])
+
+
 def test_replay_reproduces_navigation_and_auv_track_exactly(follow: Any) -> None:
     path, _res = follow
-    r = report(replay(open_recording(str(path))))
-    for key in ("nav", "auv_fix", "auv_track"):
-        assert r[key]["exact"], (key, r[key])
-        assert r[key]["recorded"] > 10
-    # a tuning change shows: the same bytes, another estimate
-    r2 = report(replay(open_recording(str(path)), ["navigation.estimator=ekf"]))
-    assert not r2["nav"]["exact"] and 0.0 < r2["nav"]["position_rms_m"] < 2.0
-    assert r2["auv_track"]["exact"]  # the tracker does not read the vessel's estimate
+    res = replay(open_recording(str(path)))
+    r = report(res)
+    _exact(r, "nav", "auv_fix", "auv_track")
+    # the estimator's command input is the recorded commands, each once: the
+    # replay's control task publishes none of its own
+    _exact(r, "thruster_commands")
+    assert sum(abs(c.u1) + abs(c.u2) > 0 for c in res.commands) > 100
+    assert r["thruster_bytes"]["identical"]  # and the driver wrote them again
+    # every input at its recorded time (virtual clock: no restamping to do)
+    assert r["late"] == r["lost"] == r["restamped"] == 0 and not r["cut_short"]
+    assert r["inputs"]["rx:buoy"] > 100 and r["inputs"]["/ThrusterCommand"] > 1000
+
+
+def test_replay_judges_a_tuning_change_on_the_recorded_inputs(follow: Any) -> None:
+    """A tuning changes what the tuned part makes of the same inputs, and nothing
+    else: the estimator still takes the commands the boat sent, not commands
+    recomputed from its new estimate."""
+    path, _res = follow
+    rec = open_recording(str(path))
+    r = report(replay(rec, ["runtime.ekf.gps_latency_s=0.05"]))
+    nav = r["nav"]
+    assert nav["different"] > 0.9 * nav["recorded"] and 0.0 < nav["position_rms_m"] < 1.0
+    _exact(r, "thruster_commands", "auv_fix", "auv_track")  # the tracker reads no estimate
+    r = report(replay(rec, ["tracker.timing_sigma_s=0.002"]))
+    assert not r["auv_track"]["exact"] and not r["auv_fix"]["exact"]
+    _exact(r, "nav", "thruster_commands")
+
+
+def test_replay_keeps_the_recorded_order_within_an_instant(
+        follow: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """GPS and compass chunks of one instant, played the other way round, give
+    another estimate (the compass publishes NavState at once): the exactness
+    above rests on the recorded order, which the replay follows."""
+    import zarco_tools.log.replay as rp
+
+    load = rp.load_inputs
+
+    def gps_last(rec: Any) -> rp.Inputs:
+        inp = load(rec)
+        inp.events.sort(key=lambda e: (e[0], e[1] == "gps"))  # stable
+        return inp
+
+    monkeypatch.setattr(rp, "load_inputs", gps_last)
+    r = report(replay(open_recording(str(follow[0]))))
+    assert not r["nav"]["exact"] and r["nav"]["different"] > 100
+    _exact(r, "thruster_commands", "auv_fix", "auv_track")
 
 
 def test_info_export_and_plot_read_the_recording(follow: Any, tmp_path: Path) -> None:
@@ -147,12 +192,19 @@ def test_info_export_and_plot_read_the_recording(follow: Any, tmp_path: Path) ->
     assert [a[1:] for a in f.extra["auv_log"]] == [a[1:] for a in res.extra["auv_log"]]
 
 
-def test_rotation_parts_are_finished_and_continuous(tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def rectangle(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """A lines mission recorded in parts of 1 MB."""
+    tmp = tmp_path_factory.mktemp("rect")
     scn = load_scenario(ROOT / "config" / "scenarios" / "rectangle.toml",
                         ["scenario.max_duration_s=120", "runtime.record.max_file_mb=1"])
-    path = tmp_path / "rect.mcap"
+    path = tmp / "rect.mcap"
     run_scenario(scn, record=str(path))
-    parts = [path, *sorted(tmp_path.glob("rect-*.mcap"))]
+    return [path, *sorted(tmp.glob("rect-*.mcap"))]
+
+
+def test_rotation_parts_are_finished_and_continuous(rectangle: list[Path]) -> None:
+    parts = rectangle
     assert len(parts) >= 2 and parts[1].name == "rect-002.mcap"
     rec = open_recording([str(p) for p in parts])
     t = [m.json()["t"] for m in iter_messages(rec, {"/SimTruth"})]
@@ -161,6 +213,17 @@ def test_rotation_parts_are_finished_and_continuous(tmp_path: Path) -> None:
     for p in parts:
         meta = open_recording(str(p)).metadata
         assert meta["part"] == str(parts.index(p) + 1) and "config" in meta
+
+
+def test_replay_of_a_lines_mission_in_parts_is_exact(rectangle: list[Path]) -> None:
+    rec = open_recording([str(p) for p in rectangle])
+    r = report(replay(rec))
+    _exact(r, "nav", "thruster_commands")
+    assert r["thruster_bytes"]["identical"] and r["late"] == r["lost"] == 0
+    assert r["auv_track"]["recorded"] == r["auv_track"]["replayed"] == 0  # no AUV here
+    r = report(replay(rec, ["ekf.thrust_model=false"]))  # the estimator without the commands
+    assert not r["nav"]["exact"] and r["nav"]["position_rms_m"] > 0.0
+    _exact(r, "thruster_commands")
 
 
 def test_disk_floor_stops_recording_with_a_fault_not_the_run(tmp_path: Path) -> None:

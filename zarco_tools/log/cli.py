@@ -57,15 +57,26 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(r))
         return 0
-    nav, fix, trk = r["nav"], r["auv_fix"], r["auv_track"]
-    print(f"replayed {r['chunks']} raw chunks: {r['sim_seconds']:.1f} s in "
-          f"{r['wall_seconds']:.2f} s = {r['speed_x_realtime']:.0f}× real time")
+    nav, fix, trk, cmd = r["nav"], r["auv_fix"], r["auv_track"], r["thruster_commands"]
+    print(f"replayed {r['chunks']} raw chunks and {cmd['replayed']} thruster commands: "
+          f"{r['sim_seconds']:.1f} s in {r['wall_seconds']:.2f} s = "
+          f"{r['speed_x_realtime']:.0f}× real time")
     for name, d in (("NavState", nav), ("AuvFix", fix), ("AuvTrack", trk)):
         state = "identical" if d["exact"] else f"{d['different']} differ"
+        if d.get("first_difference_t") is not None:
+            state += f" (first at t = {d['first_difference_t']:.3f} s)"
         print(f"  {name:9s} recorded {d['recorded']:6d}  replayed {d['replayed']:6d}  {state}")
     if nav["compared"]:
         print(f"  position: replay − recording RMS {nav['position_rms_m']:.4f} m, "
               f"max {nav['position_max_m']:.4f} m")
+    notes = []
+    if r["cut_short"]:
+        notes.append("the recording was cut short (its writer killed): compared up to its end")
+    if r["late"] or r["lost"]:
+        notes.append(f"{r['late']} inputs played late, {r['lost']} chunks not read "
+                     "(a port the replayed driver had closed)")
+    for n in notes:
+        print(f"  note: {n}")
     if args.record:
         print(f"record: {args.record}")
     return 0
@@ -105,16 +116,21 @@ def register_log(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-
     e.add_argument("--jsonl", action="store_true", help="JSON lines instead of CSV")
     e.add_argument("-o", "--out", metavar="FILE", help="default: standard output")
     e.set_defaults(func=cmd_export)
-    r = s.add_parser("replay", help="the recorded raw device bytes through the runtime's "
-                     "drivers, estimator and tracker again (virtual clock)",
+    r = s.add_parser("replay", help="the recorded raw device bytes and thruster commands "
+                     "through the runtime's drivers, estimator and tracker again (virtual "
+                     "clock)",
                      description="Builds the runtime from the recorded configuration "
                      "(changed by --set: a tuning to judge), plays every recorded device "
-                     "chunk at its recorded time and compares the navigation and AUV track "
-                     "with the recorded ones (a simulation's recording: identical).")
+                     "chunk, the thruster commands the boat sent (the estimator's input: the "
+                     "control task does not run) and the operator's commands at their "
+                     "recorded times and in the recorded order, and compares the navigation "
+                     "and AUV track with the recorded ones (a simulation's recording: "
+                     "identical).")
     r.add_argument("files", nargs="+", metavar="FILE")
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="change a runtime setting for the replay (repeatable), e.g. "
-                   "ekf.gps_latency_s=0.1")
+                   "ekf.gps_latency_s=0.1 or tracker.timing_sigma_s=0.002 (control "
+                   "settings change nothing: the commands are the recorded ones)")
     r.add_argument("--record", metavar="OUT.mcap", help="record the replay")
     r.add_argument("--json", action="store_true", help="one JSON line of figures")
     r.set_defaults(func=cmd_replay)

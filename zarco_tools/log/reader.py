@@ -11,15 +11,20 @@ read one after the other.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import io
 import math
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
 import orjson
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.records import Channel, Footer, Message, Metadata, Schema
+from mcap.opcode import Opcode
+from mcap.records import Channel, Chunk, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
 T = TypeVar("T")
@@ -64,21 +69,87 @@ class Recording:
         return float(self.metadata.get("utc_offset_s", "0.0"))
 
 
+#: a record's head inside a chunk: opcode, length
+_HEAD = struct.Struct("<BQ")
+#: a message record's fixed part: channel id, sequence, log time, publish time
+_MSG = struct.Struct("<HIQQ")
+
+
+class _StreamReader(StreamReader):
+    """mcap's streaming reader, which passes over the index records (it parses each
+    message index entry by entry: a third of the time of reading a file)."""
+
+    def _read_record(self, opcode: int, length: int) -> Any:
+        if opcode in _INDEXES:
+            return None  # the reader reads past the record's body
+        return super()._read_record(opcode, length)
+
+
+_INDEXES = frozenset({Opcode.MESSAGE_INDEX, Opcode.CHUNK_INDEX, Opcode.ATTACHMENT_INDEX,
+                      Opcode.METADATA_INDEX, Opcode.STATISTICS, Opcode.SUMMARY_OFFSET})
+
+
+def _chunk_records(chunk: Chunk) -> bytes:
+    """A chunk's records, decompressed (as mcap's own reader does)."""
+    if chunk.compression == "zstd":
+        import zstandard
+
+        return bytes(zstandard.decompress(chunk.data, chunk.uncompressed_size))
+    if chunk.compression == "lz4":
+        import lz4.frame  # type: ignore[import-untyped]
+
+        return bytes(lz4.frame.decompress(chunk.data))
+    if chunk.compression:
+        raise McapError(f"unsupported chunk compression {chunk.compression!r}")
+    return bytes(chunk.data)
+
+
 def _iter_file(path: str, rec: Recording, topics: set[str] | None) -> Iterator[Msg]:
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
+    #: channel id → (topic, schema name), for the channels asked for
+    wanted: dict[int, tuple[str, str]] = {}
+
+    def add_channel(ch: Channel) -> None:
+        channels[ch.id] = ch
+        if topics is None or ch.topic in topics:
+            sc = schemas.get(ch.schema_id)
+            wanted[ch.id] = (ch.topic, sc.name if sc else "")
+        else:
+            wanted.pop(ch.id, None)
+
     rec.finished[path] = False
+    head, msg = _HEAD.unpack_from, _MSG.unpack_from
     with open(path, "rb") as fh:
         try:
-            for r in StreamReader(fh, skip_magic=False).records:
-                if isinstance(r, Message):
-                    ch = channels.get(r.channel_id)
-                    if ch is None or (topics is not None and ch.topic not in topics):
-                        continue
-                    sc = schemas.get(ch.schema_id)
-                    yield Msg(ch.topic, sc.name if sc else "", r.log_time, r.data)
+            # chunks are taken whole and their message records parsed here, with
+            # one struct call each (mcap's record reader costs ~20 µs a message)
+            for r in _StreamReader(fh, skip_magic=False, emit_chunks=True).records:
+                if isinstance(r, Chunk):
+                    data = _chunk_records(r)
+                    pos, end = 0, len(data)
+                    while pos < end:
+                        op, n = head(data, pos)
+                        pos += 9
+                        if op == 0x05:  # Message
+                            ids = msg(data, pos)
+                            w = wanted.get(ids[0])
+                            if w is not None:
+                                yield Msg(w[0], w[1], ids[2], data[pos + 22:pos + n])
+                        elif op in (0x03, 0x04):  # Schema, Channel
+                            sub = ReadDataStream(io.BytesIO(data[pos:pos + n]))
+                            if op == 0x03:
+                                sc = Schema.read(sub)
+                                schemas[sc.id] = sc
+                            else:
+                                add_channel(Channel.read(sub))
+                        pos += n
+                elif isinstance(r, Message):
+                    w = wanted.get(r.channel_id)
+                    if w is not None:
+                        yield Msg(w[0], w[1], r.log_time, r.data)
                 elif isinstance(r, Channel):
-                    channels[r.id] = r
+                    add_channel(r)
                 elif isinstance(r, Schema):
                     schemas[r.id] = r
                 elif isinstance(r, Metadata) and r.name == "zarco":
@@ -123,13 +194,16 @@ def by_topic(rec: Recording, topics: set[str]) -> dict[str, list[Msg]]:
     return out
 
 
+@functools.cache
+def _field_names(cls: type) -> frozenset[str]:
+    return frozenset(f.name for f in dataclasses.fields(cls))
+
+
 def rebuild(cls: type[T], d: dict[str, Any]) -> T:
     """A message dataclass from its recorded JSON (null numbers back to NaN)."""
-    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-    kw = {k: (math.nan if v is None else v) for k, v in d.items() if k in names}
-    for k, v in kw.items():
-        if isinstance(v, list):
-            kw[k] = tuple(v)
+    names = _field_names(cls)  # type: ignore[arg-type]
+    kw = {k: (math.nan if v is None else tuple(v) if isinstance(v, list) else v)
+          for k, v in d.items() if k in names}
     return cls(**kw)
 
 
