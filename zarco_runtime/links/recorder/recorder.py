@@ -1,16 +1,27 @@
 """The recorder: every bus message and every raw device chunk, to MCAP.
 
-A bus tap (:meth:`zarco_core.bus.Bus.tap`) encodes each message as JSON
-(orjson, about a microsecond) and appends it with its channel and the
-runtime time of publication to a list; each device driver hands its raw
-chunks to a hook (:attr:`drivers.nmea_device.DeviceLink.raw`), appended the
-same way, untouched.  Every ``flush_s`` the list goes, as one framed batch
-over a pipe, to the writer process (:mod:`.writer`) which writes MCAP with a
+A bus tap (:meth:`zarco_core.bus.Bus.tap`) only appends each message object to
+a list, and each device driver hands its raw chunks to a hook
+(:attr:`drivers.nmea_device.DeviceLink.raw`) that appends ``(channel, time,
+bytes)`` to the same list, untouched: nothing is encoded in the publisher's
+path.  Bus messages are immutable once published (every publisher builds a
+new one), so a message can be encoded later.  Every ``flush_s`` the list is
+packed with one MessagePack call (:func:`.schema.packer`: C code, no float
+formatting) and goes, as one framed batch over a pipe, to the writer process
+(:mod:`.writer`), which turns each record into JSON and writes MCAP with a
 JSON schema per message type, flushes chunks, rotates and watches the disk.
+The map topics (``foxglove.LocationFix`` of the vessel and the AUV) are made
+here, at packing time, from the estimates themselves.
+
 Nothing in the control loop's path waits for a disk: the pipe is
 non-blocking, and batches a stalled writer cannot take are dropped, oldest
-first, and counted (on the virtual clock of a simulation the pipe blocks
-instead: a simulation waits for its recording, losing nothing).
+first, and counted.  On the virtual clock of a simulation the pipe blocks
+instead (a simulation waits for its recording, losing nothing), and the
+writer runs in a session of its own: where the scheduler shares the CPU
+between sessions (Linux's autogroups, a desktop's default), a writer in the
+simulation's session would take its time from the simulation rather than use
+a free share; on the boat it stays in the runtime's session, below it
+(``nice`` 5).
 
 The tap is registered once (a bus tap cannot be removed), so the recorder
 object lives as long as the runtime and the supervised component only
@@ -26,11 +37,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import datetime as dt
 import fcntl
-import functools
 import json
 import logging
+import math
 import os
 import platform
 import select
@@ -40,7 +52,7 @@ import time
 from array import array
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
-from pathlib import Path
+from itertools import compress
 from typing import TYPE_CHECKING, Any
 
 import orjson
@@ -50,15 +62,18 @@ from zarco_core.auv_messages import AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, VirtualTimeEventLoop
 from zarco_core.component import ComponentContext, Factory
+from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import Event, Fault, NavState
 from zarco_runtime.links.recorder.schema import (
+    BATCH,
+    HEADER,
     LOCATION_FIX_SCHEMA,
     OPTIONS,
     RAW_CHUNK_SCHEMA,
-    json_default,
     message_schema,
+    packer,
+    plain,
 )
-from zarco_runtime.links.recorder.writer import BATCH, HEADER
 from zarco_runtime.supervision.supervisor import Boot, mission_to_json
 
 if TYPE_CHECKING:
@@ -69,33 +84,13 @@ log = logging.getLogger("zarco.recorder")
 #: topics of the derived foxglove.LocationFix positions (map panel)
 DERIVED = {NavState: "vessel", AuvTrack: "auv"}
 #: in simulation, hand a batch over once it holds this many records
-SIM_BATCH = 4000
+SIM_BATCH = 500
 #: loop turns a stopping recorder waits for the others' last messages
 SHUTDOWN_SPINS = 10
 #: how long a stopping runtime waits for the writer to finish its file (s)
 FINISH_TIMEOUT_S = 10.0
 
 Devices = Callable[[], Sequence[DeviceLink | None]]
-
-
-@functools.cache
-def software_version() -> str:
-    """The package version, and the git commit when run from a work tree (once a
-    process)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        v = version("zarco-runtime")
-    except PackageNotFoundError:
-        v = "unknown"
-    root = Path(__file__).resolve().parents[3]
-    if (root / ".git").exists():
-        with contextlib.suppress(OSError, subprocess.SubprocessError):
-            rev = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty"],
-                                 capture_output=True, text=True, timeout=5.0)
-            if rev.returncode == 0 and rev.stdout.strip():
-                v += f"+git.{rev.stdout.strip()}"
-    return v
 
 
 class Recorder:
@@ -111,12 +106,18 @@ class Recorder:
         self.devices = devices or (lambda: ())
         self.base_dir = base_dir
         self.counters: Counter[str] = Counter()
-        # the records waiting for the writer: channel, runtime time, bytes
-        self.chans: list[int] = []
-        self.times: list[float] = []
-        self.datas: list[bytes] = []
+        #: the records waiting for the writer: bus messages, and ``(channel,
+        #: runtime time, payload)`` for raw chunks (and the derived map fixes)
+        self.pending: list[Any] = []
         self.channels: list[dict[str, Any]] = []
-        self.kinds: dict[type, int] = {}
+        #: channel of each message type (0: the record carries its channel)
+        self.kinds: dict[type, int] = {tuple: 0}
+        #: message types without a time ``t`` (recorded at the time they are packed)
+        self.untimed: set[type] = set()
+        #: message types the map topics are derived from: their channel, next time
+        self.derived: dict[type, list[Any]] = {}
+        self.frame = LocalFrame(cfg.origin.lat_deg, cfg.origin.lon_deg, cfg.origin.alt_m)
+        self.pack = packer().encode
         self.on = [True]
         self.stopped = ""
         self.paths: list[str] = []
@@ -131,29 +132,19 @@ class Recorder:
         self._virtual = False
         self._last_drain = time.monotonic()
         self._hooked: set[int] = set()
-        self.version = ""
         bus.tap(self._make_tap())
         self._attach()  # the devices built so far read nothing unrecorded
 
     # ------------------------------------------------------------- intake
 
     def _make_tap(self) -> Callable[[Any], None]:
-        kinds = self.kinds
-        chans, times, datas = self.chans.append, self.times.append, self.datas.append
-        dumps = orjson.dumps
+        append = self.pending.append
         on = self.on
-        register = self._register
 
         def tap(msg: Any) -> None:
-            # log time: the message's own time (every bus message has one), so the
-            # tap costs the encoding and three appends
+            # the publisher's cost: one append (encoding is the writer's, later)
             if on[0]:
-                ch = kinds.get(type(msg))
-                if ch is None:
-                    ch = register(type(msg))
-                chans(ch)
-                times(getattr(msg, "t", 0.0))
-                datas(dumps(msg, default=json_default, option=OPTIONS))
+                append(msg)
 
         return tap
 
@@ -168,30 +159,31 @@ class Recorder:
 
     def _register(self, kind: type) -> int:
         name = kind.__name__
-        extra: dict[str, Any] = {}
-        if kind in DERIVED:
-            extra = {"derive": DERIVED[kind],
-                     "derive_schema": json.dumps(LOCATION_FIX_SCHEMA)}
         try:
             schema = message_schema(kind)
+            timed = "t" in {f.name for f in dataclasses.fields(kind)}
         except Exception:  # not a dataclass: recorded, schema-less
-            schema = b"{}"
-        cid = self._channel(f"/{name}", f"zarco.{name}", schema, **extra)
+            schema, timed = b"{}", False
+        cid = self._channel(f"/{name}", f"zarco.{name}", schema)
         self.kinds[kind] = cid
+        if not timed:
+            self.untimed.add(kind)
+        if kind in DERIVED:
+            fix = self._channel(f"/foxglove/{DERIVED[kind]}", "foxglove.LocationFix",
+                                json.dumps(LOCATION_FIX_SCHEMA).encode())
+            self.derived[kind] = [fix, -math.inf]
         return cid
 
     def _hook(self, device: str) -> Callable[[str, float, bytes], None]:
         raw = json.dumps(RAW_CHUNK_SCHEMA).encode()
         rx = self._channel(f"/raw/{device}/rx", "zarco.RawChunk", raw, raw=[device, "rx"])
         tx = self._channel(f"/raw/{device}/tx", "zarco.RawChunk", raw, raw=[device, "tx"])
-        chans, times, datas = self.chans.append, self.times.append, self.datas.append
+        append = self.pending.append
         on = self.on
 
         def hook(direction: str, t: float, data: bytes) -> None:
             if on[0]:
-                chans(rx if direction == "rx" else tx)
-                times(t)
-                datas(data)
+                append((rx if direction == "rx" else tx, t, data))
 
         return hook
 
@@ -219,7 +211,8 @@ class Recorder:
         boot = {"mission": mission_to_json(b.mission) if b.mission else None,
                 "autostart": b.autostart}
         now = self.clock.now()
-        return {"version": self.version, "config": orjson.dumps(self.cfg, option=OPTIONS).decode(),
+        # "version": the writer's (it asks git, off the runtime's time)
+        return {"config": orjson.dumps(self.cfg, option=OPTIONS).decode(),
                 "boot": json.dumps(boot), "t0": repr(self.t0),
                 "utc_offset_s": repr(self.clock.utc(now) - now),
                 "started_utc": self.base.removeprefix("zarco-"),
@@ -232,12 +225,11 @@ class Recorder:
             self.t0 = self.clock.now()
             stamp = dt.datetime.fromtimestamp(self.clock.utc(self.t0), dt.UTC)
             self.base = "zarco-" + stamp.strftime("%Y%m%dT%H%M%SZ")
-            self.version = software_version()
         args = [sys.executable, "-m", "zarco_runtime.links.recorder.writer"]
         if not self._virtual:
-            args += ["--nice", "5"]
+            args += ["--nice", "5"]  # on the boat: below the runtime, in its session
         self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     close_fds=True)
+                                     close_fds=True, start_new_session=self._virtual)
         assert self.proc.stdin is not None and self.proc.stdout is not None
         fd = self.proc.stdin.fileno()
         with contextlib.suppress(OSError, AttributeError):
@@ -248,7 +240,7 @@ class Recorder:
         o = self.cfg.origin
         start = {"op": "start", "dir": folder, "file": rc.file, "base": self.base,
                  "max_file_mb": rc.max_file_mb, "min_free_mb": rc.min_free_mb,
-                 "flush_s": rc.flush_s, "fsync_s": rc.fsync_s, "location_hz": rc.location_hz,
+                 "flush_s": rc.flush_s, "fsync_s": rc.fsync_s,
                  "origin": [o.lat_deg, o.lon_deg, o.alt_m], "first_part": self.parts,
                  "metadata": self._metadata()}
         data = [f for f in self.out if f[1] > 0]  # batches a dead writer did not take
@@ -282,24 +274,87 @@ class Recorder:
                 break
 
     def _batch(self) -> None:
-        """Frame the pending records and queue them for the writer."""
-        n = len(self.datas)
+        """Pack the pending records and queue them for the writer."""
+        pending = self.pending
+        n = len(pending)
         if not n:
             return
-        chans = array("H", self.chans).tobytes()
-        times = array("d", self.times).tobytes()
-        lens = array("I", map(len, self.datas)).tobytes()
-        payload = b"".join(self.datas)
-        self.chans.clear()
-        self.times.clear()
-        self.datas.clear()
+        items = pending.copy()
+        pending.clear()
         if self.stopped:
             return
         now = self.clock.now()
         offset = self.clock.utc(now) - now
-        body = b"".join((BATCH.pack(n, offset), chans, times, lens, payload))
-        self._queue(HEADER.pack(b"D", len(body)) + body, n)
+        kinds = self.kinds
+        types = list(map(type, items))
+        present = set(types)
+        for kind in present.difference(kinds):
+            self._register(kind)
+        chans = array("H", map(kinds.__getitem__, types))
+        if self.untimed and not self.untimed.isdisjoint(present):
+            for i in compress(range(n), map(self.untimed.__contains__, types)):
+                items[i] = (chans[i], now, items[i])
+                chans[i] = 0
+        if self.derived and not present.isdisjoint(self.derived):
+            for i in compress(range(n), map(self.derived.__contains__, types)):
+                fix = self._fix(items[i], offset)
+                if fix is not None:
+                    items.append(fix)
+                    chans.append(0)
+        try:
+            payload = self.pack(items)
+        except (TypeError, ValueError, OverflowError):  # a value MessagePack refuses
+            payload = self.pack(self._salvage(items))
+        body = b"".join((BATCH.pack(len(items), offset), chans.tobytes(), payload))
+        self._queue(HEADER.pack(b"D", len(body)) + body, len(items))
         self.counters["messages"] += n
+        self.counters["derived"] += len(items) - n
+
+    def _salvage(self, items: list[Any]) -> list[Any]:
+        out = []
+        for m in items:
+            try:
+                self.pack(m)
+                out.append(m)
+            except (TypeError, ValueError, OverflowError):
+                out.append(plain(m))
+                self.counters["salvaged"] += 1
+        return out
+
+    def _fix(self, m: Any, offset: float) -> tuple[int, float, dict[str, Any]] | None:
+        """The map fix (``foxglove.LocationFix``) of a vessel estimate or an AUV
+        track, at most ``location_hz``."""
+        d = self.derived[type(m)]
+        t = m.t
+        if not t >= d[1]:
+            return None
+        if isinstance(m, NavState):
+            lat, lon = m.lat_deg, m.lon_deg
+            if not (m.pos_valid and math.isfinite(lat) and math.isfinite(lon)):
+                return None
+            cov = m.cov
+            if len(cov) == 25 and all(math.isfinite(c) for c in (cov[0], cov[1], cov[6])):
+                ee, en, nn = cov[6], cov[1], cov[0]  # (x north, y east) → East-North-Up
+                pc, kind = [ee, en, 0.0, en, nn, 0.0, 0.0, 0.0, 0.0], 3
+            else:
+                pc, kind = [0.0] * 9, 0
+            what, color = "vessel", {"r": 0.1, "g": 0.4, "b": 1.0, "a": 1.0}
+        else:
+            x, y = m.kf_x_m, m.kf_y_m
+            if m.lost or not (int(m.flags) & 1) or not (math.isfinite(x) and math.isfinite(y)):
+                return None
+            lat, lon, _alt = self.frame.to_geodetic(x, y)
+            s = m.kf_pos_sigma_m
+            s2 = s * s if math.isfinite(s) else 0.0
+            pc, kind = [s2, 0.0, 0.0, 0.0, s2, 0.0, 0.0, 0.0, 0.0], 2 if s2 else 0
+            what, color = "auv", {"r": 1.0, "g": 0.3, "b": 0.1, "a": 1.0}
+        d[1] = t + 1.0 / self.rc.location_hz
+        utc = t + offset
+        sec = int(utc)
+        return (d[0], t, {"timestamp": {"sec": sec, "nsec": int((utc - sec) * 1e9)},
+                          "frame_id": what, "latitude": lat, "longitude": lon,
+                          "altitude": 0.0, "position_covariance": pc,
+                          "position_covariance_type": kind, "color": color})
 
     def _send(self) -> None:
         """Write queued frames to the writer's pipe (as much as it takes now)."""
@@ -331,9 +386,10 @@ class Recorder:
             data = os.read(proc.stdout.fileno(), 65536)
         except (BlockingIOError, OSError):
             data = b""
-        if not data:
-            return
         self._lines += data
+        self._parse_lines()
+
+    def _parse_lines(self) -> None:
         *lines, self._lines = self._lines.split(b"\n")
         for line in lines:
             with contextlib.suppress(ValueError):
@@ -365,9 +421,7 @@ class Recorder:
         self._fault(why)
         self.stopped = why
         self.on[0] = False
-        self.chans.clear()
-        self.times.clear()
-        self.datas.clear()
+        self.pending.clear()
         self._detach()
 
     # ---------------------------------------------------------------- run
@@ -385,7 +439,7 @@ class Recorder:
             while True:
                 await asyncio.sleep(period)
                 self._attach()
-                if self._virtual and len(self.datas) < SIM_BATCH \
+                if self._virtual and len(self.pending) < SIM_BATCH \
                         and time.monotonic() - self._last_drain < period:
                     continue
                 self._last_drain = time.monotonic()
@@ -421,15 +475,29 @@ class Recorder:
         with contextlib.suppress(OSError):
             if proc.stdin is not None:
                 proc.stdin.close()
+        # the writer's last words, up to the end of its output (it has exited then)
+        deadline = time.monotonic() + FINISH_TIMEOUT_S
+        if proc.stdout is not None:
+            fd = proc.stdout.fileno()
+            while (left := deadline - time.monotonic()) > 0:
+                if not select.select([fd], [], [], left)[0]:
+                    continue
+                try:
+                    data = os.read(fd, 65536)
+                except BlockingIOError:
+                    continue
+                except OSError:
+                    break
+                if not data:
+                    break
+                self._lines += data
         try:
-            proc.wait(timeout=FINISH_TIMEOUT_S)
+            proc.wait(timeout=max(0.0, deadline - time.monotonic()) + 1.0)
         except subprocess.TimeoutExpired:
             log.error("recorder: the writer did not finish in %.0f s", FINISH_TIMEOUT_S)
             proc.kill()
             proc.wait()
-        self.proc = proc
-        self._events()
-        self.proc = None
+        self._parse_lines()
         if proc.stdout is not None:
             proc.stdout.close()
 
@@ -453,4 +521,4 @@ def recorder_factory(cfg: RuntimeConfig, bus: Bus, clock: Clock, boot: Boot | No
     return RecorderFactory(cfg, bus, clock, boot, devices, base_dir)
 
 
-__all__ = ["Recorder", "RecorderFactory", "recorder_factory", "software_version"]
+__all__ = ["Recorder", "RecorderFactory", "recorder_factory"]
