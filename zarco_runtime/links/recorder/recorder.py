@@ -53,6 +53,8 @@ from array import array
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
 from itertools import compress
+from operator import attrgetter
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import orjson
@@ -64,16 +66,17 @@ from zarco_core.clock import Clock, VirtualTimeEventLoop
 from zarco_core.component import ComponentContext, Factory
 from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import Event, Fault, NavState
+from zarco_runtime.links.recorder import writer
 from zarco_runtime.links.recorder.schema import (
-    BATCH,
-    HEADER,
     LOCATION_FIX_SCHEMA,
     OPTIONS,
     RAW_CHUNK_SCHEMA,
+    json_encoder,
     message_schema,
-    packer,
     plain,
+    raw_chunk_type,
 )
+from zarco_runtime.links.recorder.writer import BATCH, HEADER
 from zarco_runtime.supervision.supervisor import Boot, mission_to_json
 
 if TYPE_CHECKING:
@@ -85,12 +88,21 @@ log = logging.getLogger("zarco.recorder")
 DERIVED = {NavState: "vessel", AuvTrack: "auv"}
 #: in simulation, hand a batch over once it holds this many records
 SIM_BATCH = 500
+#: in simulation, the recorder's loop wakes this often (virtual time, s)
+SIM_WAKE_S = 1.0
 #: loop turns a stopping recorder waits for the others' last messages
 SHUTDOWN_SPINS = 10
 #: how long a stopping runtime waits for the writer to finish its file (s)
 FINISH_TIMEOUT_S = 10.0
 
 Devices = Callable[[], Sequence[DeviceLink | None]]
+_TIME = attrgetter("t")
+
+
+def _time_of(m: Any, now: float) -> float:
+    """A record's runtime time: its ``t``, or ``now`` if it has none (or not a number)."""
+    t = getattr(m, "t", None)
+    return float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) else now
 
 
 class Recorder:
@@ -106,18 +118,18 @@ class Recorder:
         self.devices = devices or (lambda: ())
         self.base_dir = base_dir
         self.counters: Counter[str] = Counter()
-        #: the records waiting for the writer: bus messages, and ``(channel,
-        #: runtime time, payload)`` for raw chunks (and the derived map fixes)
+        #: the records waiting for the writer: bus messages and raw chunks
         self.pending: list[Any] = []
         self.channels: list[dict[str, Any]] = []
-        #: channel of each message type (0: the record carries its channel)
-        self.kinds: dict[type, int] = {tuple: 0}
+        #: channel of each message type (and of each device's raw chunks)
+        self.kinds: dict[type, int] = {}
         #: message types without a time ``t`` (recorded at the time they are packed)
         self.untimed: set[type] = set()
         #: message types the map topics are derived from: their channel, next time
         self.derived: dict[type, list[Any]] = {}
         self.frame = LocalFrame(cfg.origin.lat_deg, cfg.origin.lon_deg, cfg.origin.alt_m)
-        self.pack = packer().encode
+        self.encode = json_encoder().encode
+        self.encode_lines = json_encoder().encode_lines
         self.on = [True]
         self.stopped = ""
         self.paths: list[str] = []
@@ -138,15 +150,10 @@ class Recorder:
     # ------------------------------------------------------------- intake
 
     def _make_tap(self) -> Callable[[Any], None]:
-        append = self.pending.append
-        on = self.on
-
-        def tap(msg: Any) -> None:
-            # the publisher's cost: one append (encoding is the writer's, later)
-            if on[0]:
-                append(msg)
-
-        return tap
+        # the publisher's cost: one append, a builtin method (no Python frame);
+        # the encoding is done later, off its path.  A stopped recorder's list is
+        # emptied by its run loop (a tap cannot be removed).
+        return self.pending.append
 
     def _channel(self, topic: str, schema_name: str, schema: bytes, **kw: Any) -> int:
         cid = len(self.channels) + 1
@@ -176,14 +183,18 @@ class Recorder:
 
     def _hook(self, device: str) -> Callable[[str, float, bytes], None]:
         raw = json.dumps(RAW_CHUNK_SCHEMA).encode()
-        rx = self._channel(f"/raw/{device}/rx", "zarco.RawChunk", raw, raw=[device, "rx"])
-        tx = self._channel(f"/raw/{device}/tx", "zarco.RawChunk", raw, raw=[device, "tx"])
+        rx, tx = raw_chunk_type(device, "rx"), raw_chunk_type(device, "tx")
+        self.kinds[rx] = self._channel(f"/raw/{device}/rx", "zarco.RawChunk", raw,
+                                       raw=[device, "rx"])
+        self.kinds[tx] = self._channel(f"/raw/{device}/tx", "zarco.RawChunk", raw,
+                                       raw=[device, "tx"])
         append = self.pending.append
+        utc = self.clock.utc
         on = self.on
 
         def hook(direction: str, t: float, data: bytes) -> None:
             if on[0]:
-                append((rx if direction == "rx" else tx, t, data))
+                append((rx if direction == "rx" else tx)(t, utc(t), data))
 
         return hook
 
@@ -225,7 +236,8 @@ class Recorder:
             self.t0 = self.clock.now()
             stamp = dt.datetime.fromtimestamp(self.clock.utc(self.t0), dt.UTC)
             self.base = "zarco-" + stamp.strftime("%Y%m%dT%H%M%SZ")
-        args = [sys.executable, "-m", "zarco_runtime.links.recorder.writer"]
+        # the writer by its file: it imports nothing of the project (a fast start)
+        args = [sys.executable, str(Path(writer.__file__).resolve())]
         if not self._virtual:
             args += ["--nice", "5"]  # on the boat: below the runtime, in its session
         self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
@@ -274,7 +286,8 @@ class Recorder:
                 break
 
     def _batch(self) -> None:
-        """Pack the pending records and queue them for the writer."""
+        """Encode the pending records (one call: JSON lines) and queue them for the
+        writer."""
         pending = self.pending
         n = len(pending)
         if not n:
@@ -291,43 +304,47 @@ class Recorder:
         for kind in present.difference(kinds):
             self._register(kind)
         chans = array("H", map(kinds.__getitem__, types))
-        if self.untimed and not self.untimed.isdisjoint(present):
-            for i in compress(range(n), map(self.untimed.__contains__, types)):
-                items[i] = (chans[i], now, items[i])
-                chans[i] = 0
-        if self.derived and not present.isdisjoint(self.derived):
-            for i in compress(range(n), map(self.derived.__contains__, types)):
-                fix = self._fix(items[i], offset)
-                if fix is not None:
-                    items.append(fix)
-                    chans.append(0)
         try:
-            payload = self.pack(items)
-        except (TypeError, ValueError, OverflowError):  # a value MessagePack refuses
-            payload = self.pack(self._salvage(items))
-        body = b"".join((BATCH.pack(len(items), offset), chans.tobytes(), payload))
+            if self.untimed and not self.untimed.isdisjoint(present):
+                raise TypeError("some records have no time")
+            times = array("d", map(_TIME, items))
+        except (AttributeError, TypeError):
+            times = array("d", [_time_of(m, now) for m in items])
+        if self.derived and not present.isdisjoint(self.derived):
+            derived = self.derived
+            for i in compress(range(n), map(derived.__contains__, types)):
+                m = items[i]
+                if m.t >= derived[types[i]][1]:  # at most location_hz
+                    fix = self._fix(m, offset)
+                    if fix is not None:
+                        items.append(fix[2])
+                        chans.append(fix[0])
+                        times.append(fix[1])
+        try:
+            lines = self.encode_lines(items)
+        except (TypeError, ValueError, OverflowError):  # a value msgspec refuses
+            lines = self._salvage(items)
+        body = b"".join((BATCH.pack(len(items), offset), chans.tobytes(), times.tobytes(),
+                         lines))
         self._queue(HEADER.pack(b"D", len(body)) + body, len(items))
         self.counters["messages"] += n
         self.counters["derived"] += len(items) - n
 
-    def _salvage(self, items: list[Any]) -> list[Any]:
+    def _salvage(self, items: list[Any]) -> bytes:
         out = []
         for m in items:
             try:
-                self.pack(m)
-                out.append(m)
+                out.append(self.encode(m))
             except (TypeError, ValueError, OverflowError):
-                out.append(plain(m))
+                out.append(self.encode(plain(m)))
                 self.counters["salvaged"] += 1
-        return out
+        return b"".join(x + b"\n" for x in out)
 
     def _fix(self, m: Any, offset: float) -> tuple[int, float, dict[str, Any]] | None:
         """The map fix (``foxglove.LocationFix``) of a vessel estimate or an AUV
         track, at most ``location_hz``."""
         d = self.derived[type(m)]
         t = m.t
-        if not t >= d[1]:
-            return None
         if isinstance(m, NavState):
             lat, lon = m.lat_deg, m.lon_deg
             if not (m.pos_valid and math.isfinite(lat) and math.isfinite(lon)):
@@ -428,16 +445,20 @@ class Recorder:
 
     async def run(self) -> None:
         if self.stopped:  # out of disk: nothing more this run, but never end the process
-            await asyncio.Event().wait()
+            await self._discard()
         self._virtual = isinstance(asyncio.get_running_loop(), VirtualTimeEventLoop)
         self._start_writer()
         self._attach()
         proc = self.proc
         assert proc is not None
         period = self.rc.flush_s
+        # a simulation's loop wakes less often (each wake is a turn of its loop) and
+        # packs small batches (the messages of a big one outlive the young
+        # generation of the garbage collector and make it work)
+        wake = max(period, SIM_WAKE_S) if self._virtual else period
         try:
             while True:
-                await asyncio.sleep(period)
+                await asyncio.sleep(wake)
                 self._attach()
                 if self._virtual and len(self.pending) < SIM_BATCH \
                         and time.monotonic() - self._last_drain < period:
@@ -447,7 +468,7 @@ class Recorder:
                 self._send()
                 self._events()
                 if self.stopped:
-                    await asyncio.Event().wait()
+                    await self._discard()
                 if proc.poll() is not None:
                     self._events()
                     raise RuntimeError(f"recorder writer exited with code {proc.returncode}")
@@ -458,6 +479,12 @@ class Recorder:
                 for _ in range(SHUTDOWN_SPINS):
                     await asyncio.sleep(0)
             self._finish()
+
+    async def _discard(self) -> None:
+        """Recording has stopped: forget what the tap still takes, for ever."""
+        while True:
+            self.pending.clear()
+            await asyncio.sleep(self.rc.flush_s)
 
     def _finish(self) -> None:
         """Hand over what is pending and let the writer finish its file (blocking:

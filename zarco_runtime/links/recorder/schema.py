@@ -8,12 +8,12 @@ dataclasses as objects, bytes as base64 strings.  Optional fields take the
 schema of their type (JSON ``null`` stands for None, and for NaN and infinity,
 which JSON cannot carry).  Field docs come from the class docstring.
 
-The recorder hands messages to its writer process as MessagePack
-(:func:`packer`: dataclasses as maps of their fields, enums as their values,
-tuples and sets as arrays, bytes as binary; a float's 8 bytes are copied,
-not formatted) and the writer turns each into JSON (:func:`json_encoder`:
-bytes as base64, NaN and infinity as null, non-string dict keys as strings):
-the same JSON, key for key, as encoding the dataclass directly.
+Messages are encoded as JSON by msgspec (:func:`json_encoder`: dataclasses
+as objects of their fields, enums as their values, tuples and sets as arrays,
+bytes as base64, NaN and infinity as null, non-string dict keys as strings),
+a batch at a time: one call encodes a whole batch as JSON lines, a few
+tenths of a microsecond a message.  A raw device chunk is a
+:class:`RawChunk`, whose JSON is the ``zarco.RawChunk`` schema's.
 """
 
 from __future__ import annotations
@@ -21,18 +21,12 @@ from __future__ import annotations
 import base64
 import dataclasses
 import enum
-import struct
 import types
 import typing
 from typing import Any
 
 import msgspec
 import orjson
-
-#: a frame from the recorder to its writer: kind and body length, then the body
-HEADER = struct.Struct("<cI")
-#: a batch's head: number of records, UTC offset (UTC = runtime time + offset)
-BATCH = struct.Struct("<Id")
 
 #: JSON options: dict keys that are not strings become strings
 OPTIONS = orjson.OPT_NON_STR_KEYS
@@ -58,14 +52,30 @@ def enc_hook(obj: Any) -> Any:
     return repr(obj)
 
 
-def packer() -> msgspec.msgpack.Encoder:
-    """The encoder of the recorder's batches (runtime side)."""
-    return msgspec.msgpack.Encoder(enc_hook=enc_hook)
-
-
 def json_encoder() -> msgspec.json.Encoder:
-    """The encoder of the recorded messages (writer side)."""
+    """The encoder of the recorded messages."""
     return msgspec.json.Encoder(enc_hook=enc_hook)
+
+
+class RawChunk(msgspec.Struct):
+    """Bytes read from (``dir`` rx) or written to (tx) a device port (see
+    :data:`RAW_CHUNK_SCHEMA`); a class per device and direction
+    (:func:`raw_chunk_type`) says which channel a chunk goes to."""
+
+    t: float
+    utc_s: float
+    data: bytes
+    device: str = ""
+    dir: str = ""
+
+
+def raw_chunk_type(device: str, direction: str) -> type[RawChunk]:
+    """The :class:`RawChunk` of one device's direction (``RawChunk(t, utc_s, data)``)."""
+    kind = msgspec.defstruct(f"RawChunk_{device}_{direction}",
+                             [("device", str, device), ("dir", str, direction)],
+                             bases=(RawChunk,))
+    assert issubclass(kind, RawChunk)
+    return kind
 
 
 def plain(obj: Any) -> Any:
