@@ -2,16 +2,16 @@
 
 A bus tap (:meth:`zarco_core.bus.Bus.tap`) only appends each message object to
 a list, and each device driver hands its raw chunks to a hook
-(:attr:`drivers.nmea_device.DeviceLink.raw`) that appends ``(channel, time,
-bytes)`` to the same list, untouched: nothing is encoded in the publisher's
-path.  Bus messages are immutable once published (every publisher builds a
-new one), so a message can be encoded later.  Every ``flush_s`` the list is
-packed with one MessagePack call (:func:`.schema.packer`: C code, no float
-formatting) and goes, as one framed batch over a pipe, to the writer process
-(:mod:`.writer`), which turns each record into JSON and writes MCAP with a
-JSON schema per message type, flushes chunks, rotates and watches the disk.
-The map topics (``foxglove.LocationFix`` of the vessel and the AUV) are made
-here, at packing time, from the estimates themselves.
+(:attr:`drivers.nmea_device.DeviceLink.raw`) that appends them, untouched, to
+the same list (a :class:`~.schema.RawChunk` of the device's class): nothing
+is encoded in the publisher's path.  Bus messages are immutable once
+published (every publisher builds a new one), so a message can be encoded
+later.  Every ``flush_s`` the list is packed with one MessagePack call
+(:func:`.schema.packer`: C code, no float formatting) and goes, as one framed
+batch over a pipe, to the writer process (:mod:`.writer`), which turns each
+record into JSON, derives the map topics (``foxglove.LocationFix`` of the
+vessel and the AUV) and writes MCAP with a JSON schema per message type,
+flushes chunks, rotates and watches the disk.
 
 Nothing in the control loop's path waits for a disk: the pipe is
 non-blocking, and batches a stalled writer cannot take are dropped, oldest
@@ -37,12 +37,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import dataclasses
 import datetime as dt
 import fcntl
 import json
 import logging
-import math
 import os
 import platform
 import select
@@ -52,8 +50,6 @@ import time
 from array import array
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
-from itertools import compress
-from operator import attrgetter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -64,15 +60,14 @@ from zarco_core.auv_messages import AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, VirtualTimeEventLoop
 from zarco_core.component import ComponentContext, Factory
-from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import Event, Fault, NavState
 from zarco_runtime.links.recorder import writer
 from zarco_runtime.links.recorder.schema import (
     LOCATION_FIX_SCHEMA,
     OPTIONS,
     RAW_CHUNK_SCHEMA,
-    json_encoder,
     message_schema,
+    packer,
     plain,
     raw_chunk_type,
 )
@@ -96,13 +91,6 @@ SHUTDOWN_SPINS = 10
 FINISH_TIMEOUT_S = 10.0
 
 Devices = Callable[[], Sequence[DeviceLink | None]]
-_TIME = attrgetter("t")
-
-
-def _time_of(m: Any, now: float) -> float:
-    """A record's runtime time: its ``t``, or ``now`` if it has none (or not a number)."""
-    t = getattr(m, "t", None)
-    return float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) else now
 
 
 class Recorder:
@@ -123,13 +111,7 @@ class Recorder:
         self.channels: list[dict[str, Any]] = []
         #: channel of each message type (and of each device's raw chunks)
         self.kinds: dict[type, int] = {}
-        #: message types without a time ``t`` (recorded at the time they are packed)
-        self.untimed: set[type] = set()
-        #: message types the map topics are derived from: their channel, next time
-        self.derived: dict[type, list[Any]] = {}
-        self.frame = LocalFrame(cfg.origin.lat_deg, cfg.origin.lon_deg, cfg.origin.alt_m)
-        self.encode = json_encoder().encode
-        self.encode_lines = json_encoder().encode_lines
+        self.pack = packer().encode
         self.on = [True]
         self.stopped = ""
         self.paths: list[str] = []
@@ -166,19 +148,17 @@ class Recorder:
 
     def _register(self, kind: type) -> int:
         name = kind.__name__
-        try:
-            schema = message_schema(kind)
-            timed = "t" in {f.name for f in dataclasses.fields(kind)}
-        except Exception:  # not a dataclass: recorded, schema-less
-            schema, timed = b"{}", False
-        cid = self._channel(f"/{name}", f"zarco.{name}", schema)
-        self.kinds[kind] = cid
-        if not timed:
-            self.untimed.add(kind)
+        extra: dict[str, Any] = {}
         if kind in DERIVED:
             fix = self._channel(f"/foxglove/{DERIVED[kind]}", "foxglove.LocationFix",
                                 json.dumps(LOCATION_FIX_SCHEMA).encode())
-            self.derived[kind] = [fix, -math.inf]
+            extra = {"derive": [DERIVED[kind], fix]}
+        try:
+            schema = message_schema(kind)
+        except Exception:  # not a dataclass: recorded, schema-less
+            schema = b"{}"
+        cid = self._channel(f"/{name}", f"zarco.{name}", schema, **extra)
+        self.kinds[kind] = cid
         return cid
 
     def _hook(self, device: str) -> Callable[[str, float, bytes], None]:
@@ -189,12 +169,11 @@ class Recorder:
         self.kinds[tx] = self._channel(f"/raw/{device}/tx", "zarco.RawChunk", raw,
                                        raw=[device, "tx"])
         append = self.pending.append
-        utc = self.clock.utc
         on = self.on
 
         def hook(direction: str, t: float, data: bytes) -> None:
             if on[0]:
-                append((rx if direction == "rx" else tx)(t, utc(t), data))
+                append((rx if direction == "rx" else tx)(t, data))
 
         return hook
 
@@ -252,7 +231,7 @@ class Recorder:
         o = self.cfg.origin
         start = {"op": "start", "dir": folder, "file": rc.file, "base": self.base,
                  "max_file_mb": rc.max_file_mb, "min_free_mb": rc.min_free_mb,
-                 "flush_s": rc.flush_s, "fsync_s": rc.fsync_s,
+                 "flush_s": rc.flush_s, "fsync_s": rc.fsync_s, "location_hz": rc.location_hz,
                  "origin": [o.lat_deg, o.lon_deg, o.alt_m], "first_part": self.parts,
                  "metadata": self._metadata()}
         data = [f for f in self.out if f[1] > 0]  # batches a dead writer did not take
@@ -286,7 +265,7 @@ class Recorder:
                 break
 
     def _batch(self) -> None:
-        """Encode the pending records (one call: JSON lines) and queue them for the
+        """Pack the pending records (one MessagePack call) and queue them for the
         writer."""
         pending = self.pending
         n = len(pending)
@@ -300,78 +279,27 @@ class Recorder:
         offset = self.clock.utc(now) - now
         kinds = self.kinds
         types = list(map(type, items))
-        present = set(types)
-        for kind in present.difference(kinds):
+        for kind in set(types).difference(kinds):
             self._register(kind)
         chans = array("H", map(kinds.__getitem__, types))
         try:
-            if self.untimed and not self.untimed.isdisjoint(present):
-                raise TypeError("some records have no time")
-            times = array("d", map(_TIME, items))
-        except (AttributeError, TypeError):
-            times = array("d", [_time_of(m, now) for m in items])
-        if self.derived and not present.isdisjoint(self.derived):
-            derived = self.derived
-            for i in compress(range(n), map(derived.__contains__, types)):
-                m = items[i]
-                if m.t >= derived[types[i]][1]:  # at most location_hz
-                    fix = self._fix(m, offset)
-                    if fix is not None:
-                        items.append(fix[2])
-                        chans.append(fix[0])
-                        times.append(fix[1])
-        try:
-            lines = self.encode_lines(items)
-        except (TypeError, ValueError, OverflowError):  # a value msgspec refuses
-            lines = self._salvage(items)
-        body = b"".join((BATCH.pack(len(items), offset), chans.tobytes(), times.tobytes(),
-                         lines))
-        self._queue(HEADER.pack(b"D", len(body)) + body, len(items))
+            payload = self.pack(items)
+        except (TypeError, ValueError, OverflowError):  # a value MessagePack refuses
+            payload = self.pack(self._salvage(items))
+        body = b"".join((BATCH.pack(n, offset), chans.tobytes(), payload))
+        self._queue(HEADER.pack(b"D", len(body)) + body, n)
         self.counters["messages"] += n
-        self.counters["derived"] += len(items) - n
 
-    def _salvage(self, items: list[Any]) -> bytes:
+    def _salvage(self, items: list[Any]) -> list[Any]:
         out = []
         for m in items:
             try:
-                out.append(self.encode(m))
+                self.pack(m)
+                out.append(m)
             except (TypeError, ValueError, OverflowError):
-                out.append(self.encode(plain(m)))
+                out.append(plain(m))
                 self.counters["salvaged"] += 1
-        return b"".join(x + b"\n" for x in out)
-
-    def _fix(self, m: Any, offset: float) -> tuple[int, float, dict[str, Any]] | None:
-        """The map fix (``foxglove.LocationFix``) of a vessel estimate or an AUV
-        track, at most ``location_hz``."""
-        d = self.derived[type(m)]
-        t = m.t
-        if isinstance(m, NavState):
-            lat, lon = m.lat_deg, m.lon_deg
-            if not (m.pos_valid and math.isfinite(lat) and math.isfinite(lon)):
-                return None
-            cov = m.cov
-            if len(cov) == 25 and all(math.isfinite(c) for c in (cov[0], cov[1], cov[6])):
-                ee, en, nn = cov[6], cov[1], cov[0]  # (x north, y east) → East-North-Up
-                pc, kind = [ee, en, 0.0, en, nn, 0.0, 0.0, 0.0, 0.0], 3
-            else:
-                pc, kind = [0.0] * 9, 0
-            what, color = "vessel", {"r": 0.1, "g": 0.4, "b": 1.0, "a": 1.0}
-        else:
-            x, y = m.kf_x_m, m.kf_y_m
-            if m.lost or not (int(m.flags) & 1) or not (math.isfinite(x) and math.isfinite(y)):
-                return None
-            lat, lon, _alt = self.frame.to_geodetic(x, y)
-            s = m.kf_pos_sigma_m
-            s2 = s * s if math.isfinite(s) else 0.0
-            pc, kind = [s2, 0.0, 0.0, 0.0, s2, 0.0, 0.0, 0.0, 0.0], 2 if s2 else 0
-            what, color = "auv", {"r": 1.0, "g": 0.3, "b": 0.1, "a": 1.0}
-        d[1] = t + 1.0 / self.rc.location_hz
-        utc = t + offset
-        sec = int(utc)
-        return (d[0], t, {"timestamp": {"sec": sec, "nsec": int((utc - sec) * 1e9)},
-                          "frame_id": what, "latitude": lat, "longitude": lon,
-                          "altitude": 0.0, "position_covariance": pc,
-                          "position_covariance_type": kind, "color": color})
+        return out
 
     def _send(self) -> None:
         """Write queued frames to the writer's pipe (as much as it takes now)."""

@@ -8,12 +8,14 @@ dataclasses as objects, bytes as base64 strings.  Optional fields take the
 schema of their type (JSON ``null`` stands for None, and for NaN and infinity,
 which JSON cannot carry).  Field docs come from the class docstring.
 
-Messages are encoded as JSON by msgspec (:func:`json_encoder`: dataclasses
-as objects of their fields, enums as their values, tuples and sets as arrays,
-bytes as base64, NaN and infinity as null, non-string dict keys as strings),
-a batch at a time: one call encodes a whole batch as JSON lines, a few
-tenths of a microsecond a message.  A raw device chunk is a
-:class:`RawChunk`, whose JSON is the ``zarco.RawChunk`` schema's.
+The recorder hands messages to its writer process as MessagePack, a whole
+batch in one call (:func:`packer`: dataclasses as maps of their fields,
+enums as their values, tuples and sets as arrays, bytes as binary; a float's
+8 bytes are copied, not formatted: a few tenths of a microsecond a message),
+and the writer turns each into JSON (msgspec: bytes as base64, NaN and
+infinity as null, non-string dict keys as strings): key for key the JSON of
+the dataclass itself.  A raw device chunk is a :class:`RawChunk`, whose JSON
+(with the ``utc_s`` the writer adds) is the ``zarco.RawChunk`` schema's.
 """
 
 from __future__ import annotations
@@ -52,25 +54,26 @@ def enc_hook(obj: Any) -> Any:
     return repr(obj)
 
 
-def json_encoder() -> msgspec.json.Encoder:
-    """The encoder of the recorded messages."""
-    return msgspec.json.Encoder(enc_hook=enc_hook)
+def packer() -> msgspec.msgpack.Encoder:
+    """The encoder of the recorder's batches (runtime side)."""
+    return msgspec.msgpack.Encoder(enc_hook=enc_hook)
 
 
-class RawChunk(msgspec.Struct):
-    """Bytes read from (``dir`` rx) or written to (tx) a device port (see
-    :data:`RAW_CHUNK_SCHEMA`); a class per device and direction
-    (:func:`raw_chunk_type`) says which channel a chunk goes to."""
+class RawChunk(msgspec.Struct, gc=False):
+    """Bytes read from (``dir`` rx) or written to (tx) a device port at runtime
+    time ``t`` (see :data:`RAW_CHUNK_SCHEMA`; the writer adds ``utc_s``); a class
+    per device and direction (:func:`raw_chunk_type`) says which channel a chunk
+    goes to.  Made in C, untracked by the garbage collector: a tenth of a
+    microsecond."""
 
     t: float
-    utc_s: float
     data: bytes
     device: str = ""
     dir: str = ""
 
 
 def raw_chunk_type(device: str, direction: str) -> type[RawChunk]:
-    """The :class:`RawChunk` of one device's direction (``RawChunk(t, utc_s, data)``)."""
+    """The :class:`RawChunk` of one device's direction (``RawChunk(t, data)``)."""
     kind = msgspec.defstruct(f"RawChunk_{device}_{direction}",
                              [("device", str, device), ("dir", str, direction)],
                              bases=(RawChunk,))

@@ -1,21 +1,27 @@
 """The recorder's writer process: framed batches on stdin → MCAP files.
 
-Runs as ``python …/writer.py`` beside the runtime, so that MCAP
-serialisation, compression and the disk never take the runtime's event loop
-(or its interpreter lock).  It imports nothing of the project (the standard
-library and Foxglove's SDK only): it starts in a few hundredths of a second.
+Runs as ``python …/writer.py`` beside the runtime, so that JSON encoding,
+MCAP serialisation, compression and the disk never take the runtime's event
+loop (or its interpreter lock).  It imports nothing of the project (the
+standard library, msgspec and Foxglove's SDK; the project's geodesy only to
+put an AUV on the map): it starts in a few hundredths of a second.
 
 Input frames (``<cI`` kind and body length, then the body):
 
 * ``J``: a JSON command: ``start`` (where and how to write, the metadata of
   every file), ``channel`` (a topic and its JSON schema; ``raw``: [device,
-  "rx" or "tx"] for a device's raw bytes);
+  "rx" or "tx"] for a device's raw bytes; ``derive``: ["vessel" or "auv",
+  the channel of its map topic]);
 * ``D``: a batch: ``<Id`` count n and UTC offset (UTC = runtime time +
-  offset), the n channel ids (uint16) and runtime times (float64) of the
-  records, then the n records, each one line of JSON (JSON has no raw
-  newline: each record ends with ``\n``).
+  offset), the n channel ids (uint16) of the records, then one MessagePack
+  array of the n records, each the map of a message's fields (a raw chunk's:
+  ``t``, ``data``, ``device``, ``dir``).  A record's time is its ``t``
+  (runtime time; a record without one takes the previous record's).
 
-Each record becomes one MCAP message on its channel, logged at its UTC time.
+Each record becomes one MCAP message on its channel, logged at its UTC time,
+as JSON (msgspec; a raw chunk gains its ``utc_s``); every ``1/location_hz``
+a vessel estimate (NavState) or an AUV track (AuvTrack) also gives a
+``foxglove.LocationFix`` on the map topic the runtime named for it.
 The MCAP files are written by Foxglove's SDK (``foxglove-sdk``: the Rust
 ``mcap`` writer, about a microsecond a message against four to five for the
 pure-Python ``mcap`` writer; the same format, which the ``mcap`` package
@@ -38,6 +44,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import json
+import math
 import os
 import select
 import signal
@@ -48,8 +55,11 @@ import time
 from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from itertools import compress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+import msgspec
 
 if TYPE_CHECKING:  # imported where used: the runtime reads this module's framing only
     from foxglove.mcap import MCAPWriteOptions
@@ -73,6 +83,8 @@ class Channel:
     schema: str
     encoding: str = "json"
     raw: tuple[str, str] | None = None
+    #: a map topic derived from this one's messages: "vessel" or "auv", its channel
+    derive: tuple[str, int] | None = None
 
 
 @dataclass(slots=True)
@@ -84,9 +96,14 @@ class Options:
     min_free_mb: float = 0.0
     flush_s: float = 0.25
     fsync_s: float = 1.0
+    location_hz: float = 5.0
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
     first_part: int = 0
     metadata: dict[str, str] = field(default_factory=dict)
+
+
+def _finite(x: Any) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
 
 
 def emit(event: str, **kw: Any) -> None:
@@ -226,6 +243,13 @@ class Recording:
         self.last_sync = self.last_flush
         self.dropped = 0
         self.untimed = 0
+        self.raw_ids: set[int] = set()
+        self.derive_ids: set[int] = set()
+        self.next_fix: dict[str, float] = {}
+        self.frame: Any = None
+        self.decode = msgspec.msgpack.Decoder().decode
+        enc = msgspec.json.Encoder()
+        self.encode, self.encode_lines = enc.encode, enc.encode_lines
 
     # ------------------------------------------------------------ files
 
@@ -290,12 +314,17 @@ class Recording:
     # --------------------------------------------------------- messages
 
     def add_channel(self, d: dict[str, Any]) -> None:
-        raw = d.get("raw")
+        raw, der = d.get("raw"), d.get("derive")
         ch = Channel(int(d["id"]), str(d["topic"]), str(d["schema_name"]), str(d["schema"]),
-                     str(d.get("encoding", "json")), (str(raw[0]), str(raw[1])) if raw else None)
+                     str(d.get("encoding", "json")), (str(raw[0]), str(raw[1])) if raw else None,
+                     (str(der[0]), int(der[1])) if der else None)
         while len(self.channels) <= ch.id:
             self.channels.append(None)
         self.channels[ch.id] = ch
+        if ch.raw is not None:
+            self.raw_ids.add(ch.id)
+        if ch.derive is not None:
+            self.derive_ids.add(ch.id)
 
     def batch(self, body: memoryview) -> None:
         n, offset = BATCH.unpack_from(body, 0)
@@ -315,13 +344,19 @@ class Recording:
         pos = BATCH.size
         chans = array("H")
         chans.frombytes(body[pos:pos + 2 * n])
-        pos += 2 * n
-        times = array("d")
-        times.frombytes(body[pos:pos + 8 * n])
-        pos += 8 * n
-        records = bytes(body[pos:]).split(b"\n")
-        if len(records) != n + 1 or records.pop():
-            raise ValueError(f"a batch of {n} records has {len(records)} lines")
+        records = self.decode(body[pos + 2 * n:])
+        if len(records) != n:
+            raise ValueError(f"a batch of {n} records holds {len(records)}")
+        if self.raw_ids:  # a raw chunk's UTC time, as its log time's
+            for i in compress(range(n), map(self.raw_ids.__contains__, chans)):
+                r = records[i]
+                r["utc_s"] = r["t"] + offset
+        try:
+            lines = self.encode_lines(records).split(b"\n")
+        except (TypeError, ValueError):  # a dict key JSON cannot carry
+            lines = [self._salvage(r) for r in records]
+            lines.append(b"")
+        lines.pop()
         f = self.file
         logs = f.logs
         if len(logs) < len(self.channels):
@@ -329,7 +364,7 @@ class Recording:
         written = 0
         ns = 0
         try:
-            for c, t, data in zip(chans, times, records, strict=True):
+            for c, r, data in zip(chans, records, lines, strict=True):
                 log = logs[c]
                 if log is None:
                     ch = self.channels[c]
@@ -337,14 +372,75 @@ class Recording:
                         continue
                     log = f.channel(ch)
                 try:
-                    ns = int((t + offset) * 1e9)
-                except (ValueError, OverflowError):  # no time (NaN): logged at the
-                    self.untimed += 1  # previous record's
+                    ns = int((r["t"] + offset) * 1e9)
+                except (KeyError, TypeError, ValueError, OverflowError):  # no time: logged
+                    self.untimed += 1  # at the previous record's
                 log(data, ns)
                 written += 1
+            if self.derive_ids:
+                for i in compress(range(n), map(self.derive_ids.__contains__, chans)):
+                    written += self._derive(f, chans[i], records[i], offset)
         finally:
             f.messages += written
             f.pending += written
+
+    def _salvage(self, r: Any) -> bytes:
+        def plain(x: Any) -> Any:
+            if isinstance(x, dict):
+                return {k if isinstance(k, (str, int, float)) else repr(k): plain(v)
+                        for k, v in x.items()}
+            if isinstance(x, list):
+                return [plain(v) for v in x]
+            return x
+
+        return self.encode(plain(r))
+
+    def _derive(self, f: McapFile, c: int, m: Any, offset: float) -> int:
+        """The map fix (``foxglove.LocationFix``) of a vessel estimate or an AUV
+        track, at most ``location_hz``: 1 if one was written."""
+        ch = self.channels[c]
+        if ch is None or ch.derive is None or not isinstance(m, dict):
+            return 0
+        what, fix_id = ch.derive
+        t = m.get("t")
+        if not isinstance(t, float) or not t >= self.next_fix.get(what, -math.inf):
+            return 0
+        if what == "vessel":
+            lat, lon = m.get("lat_deg"), m.get("lon_deg")
+            if not (m.get("pos_valid") and _finite(lat) and _finite(lon)):
+                return 0
+            cov = m.get("cov") or []
+            if len(cov) == 25 and all(_finite(v) for v in (cov[0], cov[1], cov[6])):
+                ee, en, nn = cov[6], cov[1], cov[0]  # (x north, y east) → East-North-Up
+                pc, kind = [ee, en, 0.0, en, nn, 0.0, 0.0, 0.0, 0.0], 3
+            else:
+                pc, kind = [0.0] * 9, 0
+            color = {"r": 0.1, "g": 0.4, "b": 1.0, "a": 1.0}
+        else:
+            x, y = m.get("kf_x_m"), m.get("kf_y_m")
+            if m.get("lost") or not (int(m.get("flags") or 0) & 1) \
+                    or not (_finite(x) and _finite(y)):
+                return 0
+            if self.frame is None:  # only with an AUV: the project's geodesy (pymap3d)
+                from zarco_core.geodesy import LocalFrame
+
+                self.frame = LocalFrame(*self.o.origin)
+            lat, lon, _alt = self.frame.to_geodetic(x, y)
+            sigma: Any = m.get("kf_pos_sigma_m")
+            s2 = float(sigma) ** 2 if _finite(sigma) else 0.0
+            pc, kind = [s2, 0.0, 0.0, 0.0, s2, 0.0, 0.0, 0.0, 0.0], 2 if s2 else 0
+            color = {"r": 1.0, "g": 0.3, "b": 0.1, "a": 1.0}
+        fch = self.channels[fix_id] if fix_id < len(self.channels) else None
+        if fch is None:
+            return 0
+        self.next_fix[what] = t + 1.0 / self.o.location_hz
+        utc = t + offset
+        sec = int(utc)
+        fix = {"timestamp": {"sec": sec, "nsec": int((utc - sec) * 1e9)}, "frame_id": what,
+               "latitude": lat, "longitude": lon, "altitude": 0.0,
+               "position_covariance": pc, "position_covariance_type": kind, "color": color}
+        f.channel(fch)(self.encode(fix), int(utc * 1e9))
+        return 1
 
     # ------------------------------------------------------------ timing
 
