@@ -81,10 +81,8 @@ log = logging.getLogger("zarco.recorder")
 
 #: topics of the derived foxglove.LocationFix positions (map panel)
 DERIVED = {NavState: "vessel", AuvTrack: "auv"}
-#: in simulation, hand a batch over once it holds this many records
-SIM_BATCH = 500
-#: in simulation, the recorder's loop wakes this often (virtual time, s)
-SIM_WAKE_S = 1.0
+#: in simulation, the recorder hands a batch over this often (virtual time, s)
+SIM_PERIOD_S = 2.0
 #: loop turns a stopping recorder waits for the others' last messages
 SHUTDOWN_SPINS = 10
 #: how long a stopping runtime waits for the writer to finish its file (s)
@@ -124,7 +122,6 @@ class Recorder:
         self._partial = b""
         self._lines = b""
         self._virtual = False
-        self._last_drain = time.monotonic()
         self._hooked: set[int] = set()
         bus.tap(self._make_tap())
         self._attach()  # the devices built so far read nothing unrecorded
@@ -380,18 +377,15 @@ class Recorder:
         proc = self.proc
         assert proc is not None
         period = self.rc.flush_s
-        # a simulation's loop wakes less often (each wake is a turn of its loop) and
-        # packs small batches (the messages of a big one outlive the young
-        # generation of the garbage collector and make it work)
-        wake = max(period, SIM_WAKE_S) if self._virtual else period
+        # a simulation hands a batch over every SIM_PERIOD_S of its own time: each
+        # wake and each batch has a cost of its own (a turn of the loop, a write to
+        # the pipe), and a batch of a few hundred messages is still small enough
+        # that its messages die young (the garbage collector's young generation)
+        wake = max(period, SIM_PERIOD_S) if self._virtual else period
         try:
             while True:
                 await asyncio.sleep(wake)
                 self._attach()
-                if self._virtual and len(self.pending) < SIM_BATCH \
-                        and time.monotonic() - self._last_drain < period:
-                    continue
-                self._last_drain = time.monotonic()
                 self._batch()
                 self._send()
                 self._events()
