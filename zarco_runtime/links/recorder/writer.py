@@ -242,10 +242,14 @@ class Recording:
         self.last_flush = time.monotonic()
         self.last_sync = self.last_flush
         self.dropped = 0
+        #: records logged at the previous record's time (they had no usable time)
         self.untimed = 0
+        self.underived = 0
+        self.last_ns = 0
         self.raw_ids: set[int] = set()
         self.derive_ids: set[int] = set()
-        self.next_fix: dict[str, float] = {}
+        #: time of the next map fix, by the channel it is derived from
+        self.next_fix: dict[int, float] = {}
         self.frame: Any = None
         self.decode = msgspec.msgpack.Decoder().decode
         enc = msgspec.json.Encoder()
@@ -325,6 +329,7 @@ class Recording:
             self.raw_ids.add(ch.id)
         if ch.derive is not None:
             self.derive_ids.add(ch.id)
+            self.next_fix[ch.id] = -math.inf
 
     def batch(self, body: memoryview) -> None:
         n, offset = BATCH.unpack_from(body, 0)
@@ -362,7 +367,7 @@ class Recording:
         if len(logs) < len(self.channels):
             logs.extend([None] * (len(self.channels) - len(logs)))
         written = 0
-        ns = 0
+        good = self.last_ns
         try:
             for c, r, data in zip(chans, records, lines, strict=True):
                 log = logs[c]
@@ -373,14 +378,25 @@ class Recording:
                     log = f.channel(ch)
                 try:
                     ns = int((r["t"] + offset) * 1e9)
-                except (KeyError, TypeError, ValueError, OverflowError):  # no time: logged
-                    self.untimed += 1  # at the previous record's
-                log(data, ns)
+                    log(data, ns)
+                    good = ns
+                except (KeyError, TypeError, ValueError, OverflowError):
+                    # no time (none, NaN, beyond 1970..2554 UTC): at the previous one's
+                    self.untimed += 1
+                    log(data, good)
                 written += 1
             if self.derive_ids:
+                nxt = self.next_fix
                 for i in compress(range(n), map(self.derive_ids.__contains__, chans)):
-                    written += self._derive(f, chans[i], records[i], offset)
+                    r = records[i]
+                    try:
+                        if not r["t"] >= nxt[chans[i]]:  # at most location_hz
+                            continue
+                        written += self._derive(f, chans[i], r, offset)
+                    except (LookupError, ArithmeticError, ValueError, TypeError):
+                        self.underived += 1  # no time, or values no map can show
         finally:
+            self.last_ns = good
             f.messages += written
             f.pending += written
 
@@ -402,9 +418,7 @@ class Recording:
         if ch is None or ch.derive is None or not isinstance(m, dict):
             return 0
         what, fix_id = ch.derive
-        t = m.get("t")
-        if not isinstance(t, float) or not t >= self.next_fix.get(what, -math.inf):
-            return 0
+        t = float(m["t"])
         if what == "vessel":
             lat, lon = m.get("lat_deg"), m.get("lon_deg")
             if not (m.get("pos_valid") and _finite(lat) and _finite(lon)):
@@ -427,19 +441,23 @@ class Recording:
                 self.frame = LocalFrame(*self.o.origin)
             lat, lon, _alt = self.frame.to_geodetic(x, y)
             sigma: Any = m.get("kf_pos_sigma_m")
-            s2 = float(sigma) ** 2 if _finite(sigma) else 0.0
+            s2 = float(sigma) * float(sigma) if _finite(sigma) else 0.0
             pc, kind = [s2, 0.0, 0.0, 0.0, s2, 0.0, 0.0, 0.0, 0.0], 2 if s2 else 0
             color = {"r": 1.0, "g": 0.3, "b": 0.1, "a": 1.0}
         fch = self.channels[fix_id] if fix_id < len(self.channels) else None
         if fch is None:
             return 0
-        self.next_fix[what] = t + 1.0 / self.o.location_hz
-        utc = t + offset
-        sec = int(utc)
-        fix = {"timestamp": {"sec": sec, "nsec": int((utc - sec) * 1e9)}, "frame_id": what,
-               "latitude": lat, "longitude": lon, "altitude": 0.0,
-               "position_covariance": pc, "position_covariance_type": kind, "color": color}
-        f.channel(fch)(self.encode(fix), int(utc * 1e9))
+        self.next_fix[c] = t + 1.0 / self.o.location_hz
+        try:
+            utc = t + offset
+            sec = int(utc)
+            fix = {"timestamp": {"sec": sec, "nsec": int((utc - sec) * 1e9)},
+                   "frame_id": what, "latitude": lat, "longitude": lon, "altitude": 0.0,
+                   "position_covariance": pc, "position_covariance_type": kind,
+                   "color": color}
+            f.channel(fch)(self.encode(fix), int(utc * 1e9))
+        except (ValueError, OverflowError):  # a time beyond what MCAP holds
+            return 0
         return 1
 
     # ------------------------------------------------------------ timing
