@@ -110,6 +110,8 @@ class Recorder:
         #: channel of each message type (and of each device's raw chunks)
         self.kinds: dict[type, int] = {}
         self.pack = packer().encode
+        self.pack_into = packer().encode_into
+        self._per_record = 250.0  # bytes a record takes, packed (about)
         self.on = [True]
         self.stopped = ""
         self.paths: list[str] = []
@@ -117,9 +119,9 @@ class Recorder:
         self.base = ""
         self.t0: float | None = None
         self.proc: subprocess.Popen[bytes] | None = None
-        self.out: deque[tuple[bytes, int]] = deque()
+        self.out: deque[tuple[bytes | bytearray, int]] = deque()
         self.out_bytes = 0
-        self._partial = b""
+        self._partial: memoryview | bytes = b""
         self._lines = b""
         self._virtual = False
         self._hooked: set[int] = set()
@@ -241,7 +243,7 @@ class Recorder:
         for frame, n in data:
             self._queue(frame, n)
 
-    def _queue(self, frame: bytes, n: int) -> None:
+    def _queue(self, frame: bytes | bytearray, n: int) -> None:
         self.out.append((frame, n))
         self.out_bytes += len(frame)
         cap = self.rc.queue_mb * 1e6
@@ -279,12 +281,18 @@ class Recorder:
         for kind in set(types).difference(kinds):
             self._register(kind)
         chans = array("H", map(kinds.__getitem__, types))
+        # the frame in one buffer (sized from the last ones): head, channels, records
+        pre = HEADER.size + BATCH.size + 2 * n
+        frame = bytearray(pre + int(n * self._per_record * 1.25) + 64)
         try:
-            payload = self.pack(items)
+            self.pack_into(items, frame, pre)
         except (TypeError, ValueError, OverflowError):  # a value MessagePack refuses
-            payload = self.pack(self._salvage(items))
-        body = b"".join((BATCH.pack(n, offset), chans.tobytes(), payload))
-        self._queue(HEADER.pack(b"D", len(body)) + body, n)
+            self.pack_into(self._salvage(items), frame, pre)
+        self._per_record = (len(frame) - pre) / n
+        HEADER.pack_into(frame, 0, b"D", len(frame) - HEADER.size)
+        BATCH.pack_into(frame, HEADER.size, n, offset)
+        frame[HEADER.size + BATCH.size:pre] = chans.tobytes()
+        self._queue(frame, n)
         self.counters["messages"] += n
 
     def _salvage(self, items: list[Any]) -> list[Any]:
@@ -308,7 +316,7 @@ class Recorder:
             if not self._partial:
                 frame, _n = self.out.popleft()
                 self.out_bytes -= len(frame)
-                self._partial = frame
+                self._partial = memoryview(frame)  # what the pipe did not take: no copy
             try:
                 k = os.write(fd, self._partial)
             except BlockingIOError:

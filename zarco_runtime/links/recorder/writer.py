@@ -490,21 +490,21 @@ class Recording:
             self._close()
 
 
-def _read_exact(fd: int, n: int, buf: bytearray) -> bool:
-    """Read ``n`` bytes into ``buf`` (cleared first); False at end of input."""
-    buf.clear()
-    while len(buf) < n:
-        chunk = os.read(fd, n - len(buf))
-        if not chunk:
-            return False
-        buf += chunk
-    return True
+def _read_exact(fd: int, n: int) -> bytearray | None:
+    """The next ``n`` bytes of the input (read into place); None at its end."""
+    buf = bytearray(n)
+    view = memoryview(buf)
+    got = 0
+    while got < n:
+        k = os.readv(fd, [view[got:]])
+        if not k:
+            return None
+        got += k
+    return buf
 
 
 def serve(fd: int) -> int:
     rec: Recording | None = None
-    hdr = bytearray()
-    body = bytearray()
     try:
         while True:
             timeout = rec.o.flush_s / 2 if rec is not None and rec.file is not None else None
@@ -513,10 +513,12 @@ def serve(fd: int) -> int:
                 if rec is not None:
                     rec.tick()
                 continue
-            if not _read_exact(fd, HEADER.size, hdr):
+            hdr = _read_exact(fd, HEADER.size)
+            if hdr is None:
                 break
             kind, length = HEADER.unpack(hdr)
-            if not _read_exact(fd, length, body):
+            body = _read_exact(fd, length)
+            if body is None:
                 break
             if kind == b"D":
                 if rec is not None:
