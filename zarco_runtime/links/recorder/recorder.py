@@ -47,7 +47,6 @@ import select
 import subprocess
 import sys
 import time
-from array import array
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -280,18 +279,18 @@ class Recorder:
         types = list(map(type, items))
         for kind in set(types).difference(kinds):
             self._register(kind)
-        chans = array("H", map(kinds.__getitem__, types))
-        # the frame in one buffer (sized from the last ones): head, channels, records
-        pre = HEADER.size + BATCH.size + 2 * n
+        chans = list(map(kinds.__getitem__, types))
+        # the frame in one buffer (sized from the last ones): head, then channels and
+        # records packed together
+        pre = HEADER.size + BATCH.size
         frame = bytearray(pre + int(n * self._per_record * 1.25) + 64)
         try:
-            self.pack_into(items, frame, pre)
+            self.pack_into((chans, items), frame, pre)
         except (TypeError, ValueError, OverflowError):  # a value MessagePack refuses
-            self.pack_into(self._salvage(items), frame, pre)
+            self.pack_into((chans, self._salvage(items)), frame, pre)
         self._per_record = (len(frame) - pre) / n
         HEADER.pack_into(frame, 0, b"D", len(frame) - HEADER.size)
         BATCH.pack_into(frame, HEADER.size, n, offset)
-        frame[HEADER.size + BATCH.size:pre] = chans.tobytes()
         self._queue(frame, n)
         self.counters["messages"] += n
 

@@ -13,9 +13,9 @@ Input frames (``<cI`` kind and body length, then the body):
   "rx" or "tx"] for a device's raw bytes; ``derive``: ["vessel" or "auv",
   the channel of its map topic]);
 * ``D``: a batch: ``<Id`` count n and UTC offset (UTC = runtime time +
-  offset), the n channel ids (uint16) of the records, then one MessagePack
-  array of the n records, each the map of a message's fields (a raw chunk's:
-  ``t``, ``data``, ``device``, ``dir``).  A record's time is its ``t``
+  offset), then MessagePack: [the n channel ids, the n records], each record
+  the map of a message's fields (a raw chunk's: ``t``, ``data``, ``device``,
+  ``dir``).  A record's time is its ``t``
   (runtime time; a record without one takes the previous record's).
 
 Each record becomes one MCAP message on its channel, logged at its UTC time,
@@ -52,7 +52,6 @@ import struct
 import subprocess
 import sys
 import time
-from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from itertools import compress
@@ -346,11 +345,8 @@ class Recording:
                 self.dropped += n
                 self._stop(f"cannot open a recording file: {exc}: recording stopped", "error")
                 return
-        pos = BATCH.size
-        chans = array("H")
-        chans.frombytes(body[pos:pos + 2 * n])
-        records = self.decode(body[pos + 2 * n:])
-        if len(records) != n:
+        chans, records = self.decode(body[BATCH.size:])
+        if len(records) != n or len(chans) != n:
             raise ValueError(f"a batch of {n} records holds {len(records)}")
         if self.raw_ids:  # a raw chunk's UTC time, as its log time's
             for i in compress(range(n), map(self.raw_ids.__contains__, chans)):
