@@ -123,7 +123,7 @@ class Recorder:
         self._partial: memoryview | bytes = b""
         self._lines = b""
         self._virtual = False
-        self._hooked: set[int] = set()
+        self._hooks: dict[str, Callable[[str, float, bytes], None]] = {}
         bus.tap(self._make_tap())
         self._attach()  # the devices built so far read nothing unrecorded
 
@@ -160,6 +160,14 @@ class Recorder:
         return cid
 
     def _hook(self, device: str) -> Callable[[str, float, bytes], None]:
+        """The raw-bytes hook of ``device`` (one pair of channels however often the
+        device's driver is rebuilt)."""
+        hook = self._hooks.get(device)
+        if hook is None:
+            hook = self._hooks[device] = self._make_hook(device)
+        return hook
+
+    def _make_hook(self, device: str) -> Callable[[str, float, bytes], None]:
         raw = json.dumps(RAW_CHUNK_SCHEMA).encode()
         rx, tx = raw_chunk_type(device, "rx"), raw_chunk_type(device, "tx")
         self.kinds[rx] = self._channel(f"/raw/{device}/rx", "zarco.RawChunk", raw,
