@@ -141,9 +141,14 @@ def _options() -> MCAPWriteOptions:
     from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
     # zstd on the writer's own thread (no pool: the machine's cores are the
-    # runtime's); message and chunk indexes, statistics and CRCs as usual
+    # runtime's); message and chunk indexes, statistics and CRCs as usual.  No
+    # seeking: each chunk is built in memory and written whole.  (A seeking writer
+    # streams a chunk to the file behind a placeholder length and patches it when
+    # the chunk ends: a kill -9 in between leaves a last record no reader can
+    # skip; killed without seeking, the file ends in a cut record, which every
+    # MCAP reader reads up to.)
     return MCAPWriteOptions(compression=MCAPCompression.Zstd, compression_threads=0,
-                            chunk_size=CHUNK_BYTES, profile="")
+                            chunk_size=CHUNK_BYTES, profile="", disable_seeking=True)
 
 
 class McapFile:
