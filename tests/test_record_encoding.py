@@ -238,13 +238,14 @@ def test_odd_messages_are_kept_not_lost(tmp_path: Path) -> None:
         v: float
 
     msgs = [Odd(1.0, 2 ** 70, {(1, 2): 3}), Timeless(0.5), Odd(math.nan, 1, {}),
-            Odd(-1e300, 2, {}), Odd(1e300, 3, {}), Odd(None, 4, {}), Odd(2.0, 5, {})]
+            Odd(-1e300, 2, {}), Odd(1e300, 3, {}), Odd(None, 4, {}), Odd(2.0, 5, {(3,): 6})]
     rec = record(tmp_path / "odd.mcap", msgs, [])
     got = [(m.topic, m.log_ns, m.json())
            for m in iter_messages(open_recording(str(tmp_path / "odd.mcap")))]
     odd = [g for g in got if g[0] == "/Odd"]
     assert [g[2]["big"] for g in odd] == [str(2 ** 70), 1, 2, 3, 4, 5]
-    assert odd[0][2]["keyed"] == {"(1, 2)": 3}
+    assert odd[0][2]["keyed"] == {"(1, 2)": 3}  # the runtime's packer refused it
+    assert odd[-1][2]["keyed"] == {"(3,)": 6}  # packed; the writer's JSON refused it
     t1 = int((1.0 + UTC_OFFSET_S) * 1e9)
     assert [g[1] for g in odd] == [t1] * 5 + [int((2.0 + UTC_OFFSET_S) * 1e9)]
     assert [g[2] for g in got if g[0] == "/Timeless"] == [{"v": 0.5}]
