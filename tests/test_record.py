@@ -237,13 +237,11 @@ def test_disk_floor_stops_recording_with_a_fault_not_the_run(tmp_path: Path) -> 
 
 
 def _batch(n: int, t0: float, ch: int = 1) -> bytes:
-    import struct
-    from array import array
+    from zarco_runtime.links.recorder.schema import packer
+    from zarco_runtime.links.recorder.writer import BATCH
 
-    datas = [json.dumps({"t": t0 + k, "v": k}).encode() for k in range(n)]
-    return b"".join([struct.pack("<Id", n, 1000.0), array("H", [ch] * n).tobytes(),
-                     array("d", [t0 + k for k in range(n)]).tobytes(),
-                     array("I", map(len, datas)).tobytes(), *datas])
+    records = [{"t": t0 + k, "v": k} for k in range(n)]
+    return BATCH.pack(n, 1000.0) + packer().encode(([ch] * n, records))
 
 
 def test_writer_floor_mid_run_keeps_what_is_written(tmp_path: Path,
@@ -296,3 +294,53 @@ def test_a_stalled_writer_never_blocks_the_publisher() -> None:
     assert rec.counters["dropped"] > 0 and rec.out_bytes <= 1e6
     assert rec.counters["messages"] == 20000 + len(faults) + len(events)  # all taken
     assert faults and "dropped" in faults[0].reason and math.isfinite(faults[0].t)
+
+
+def test_a_killed_writer_leaves_a_file_every_reader_reads_to_its_cut(tmp_path: Path) -> None:
+    """kill -9 of the writer at random moments while it writes: the file always
+    ends in a cut record (EndOfFile for mcap's streaming reader), never in a record
+    no reader can skip, and holds what was flushed."""
+    import os
+    import random
+    import signal
+    import struct
+    import subprocess
+    import sys
+    import time
+
+    from mcap.exceptions import EndOfFile
+    from mcap.reader import NonSeekingReader
+
+    import zarco_runtime.links.recorder.writer as w
+    from zarco_runtime.links.recorder.schema import packer
+
+    def frame(kind: bytes, body: bytes) -> bytes:
+        return struct.pack("<cI", kind, len(body)) + body
+
+    rng = random.Random(7)
+    pack = packer().encode
+    for k in range(4):
+        path = tmp_path / f"kill{k}.mcap"
+        proc = subprocess.Popen([sys.executable, w.__file__], stdin=subprocess.PIPE,
+                                stdout=subprocess.DEVNULL)
+        assert proc.stdin is not None
+        start = {"op": "start", "file": str(path), "flush_s": 0.05, "fsync_s": 1.0}
+        proc.stdin.write(frame(b"J", json.dumps(start).encode()))
+        proc.stdin.write(frame(b"J", json.dumps({"op": "channel", "id": 1, "topic": "/x",
+                                                  "schema_name": "x", "schema": "{}"}).encode()))
+        end = time.monotonic() + 0.3 + 0.5 * rng.random()
+        t = 0.0
+        while time.monotonic() < end:
+            recs = [{"t": (t := t + 0.001), "pad": os.urandom(48).hex()} for _ in range(500)]
+            proc.stdin.write(frame(b"D", w.BATCH.pack(500, 1e9) + pack(([1] * 500, recs))))
+            proc.stdin.flush()
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        n = 0
+        with path.open("rb") as fh:
+            try:
+                for _ in NonSeekingReader(fh).iter_messages(log_time_order=False):
+                    n += 1
+            except EndOfFile:  # the cut: every message before it was read
+                pass
+        assert n > 0

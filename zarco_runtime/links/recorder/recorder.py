@@ -1,16 +1,27 @@
 """The recorder: every bus message and every raw device chunk, to MCAP.
 
-A bus tap (:meth:`zarco_core.bus.Bus.tap`) encodes each message as JSON
-(orjson, about a microsecond) and appends it with its channel and the
-runtime time of publication to a list; each device driver hands its raw
-chunks to a hook (:attr:`drivers.nmea_device.DeviceLink.raw`), appended the
-same way, untouched.  Every ``flush_s`` the list goes, as one framed batch
-over a pipe, to the writer process (:mod:`.writer`) which writes MCAP with a
-JSON schema per message type, flushes chunks, rotates and watches the disk.
+A bus tap (:meth:`zarco_core.bus.Bus.tap`) only appends each message object to
+a list, and each device driver hands its raw chunks to a hook
+(:attr:`drivers.nmea_device.DeviceLink.raw`) that appends them, untouched, to
+the same list (a :class:`~.schema.RawChunk` of the device's class): nothing
+is encoded in the publisher's path.  Bus messages are immutable once
+published (every publisher builds a new one), so a message can be encoded
+later.  Every ``flush_s`` the list is packed with one MessagePack call
+(:func:`.schema.packer`: C code, no float formatting) and goes, as one framed
+batch over a pipe, to the writer process (:mod:`.writer`), which turns each
+record into JSON, derives the map topics (``foxglove.LocationFix`` of the
+vessel and the AUV) and writes MCAP with a JSON schema per message type,
+flushes chunks, rotates and watches the disk.
+
 Nothing in the control loop's path waits for a disk: the pipe is
 non-blocking, and batches a stalled writer cannot take are dropped, oldest
-first, and counted (on the virtual clock of a simulation the pipe blocks
-instead: a simulation waits for its recording, losing nothing).
+first, and counted.  On the virtual clock of a simulation the pipe blocks
+instead (a simulation waits for its recording, losing nothing), and the
+writer runs in a session of its own: where the scheduler shares the CPU
+between sessions (Linux's autogroups, a desktop's default), a writer in the
+simulation's session would take its time from the simulation rather than use
+a free share; on the boat it stays in the runtime's session, below it
+(``nice`` 5).
 
 The tap is registered once (a bus tap cannot be removed), so the recorder
 object lives as long as the runtime and the supervised component only
@@ -28,7 +39,6 @@ import asyncio
 import contextlib
 import datetime as dt
 import fcntl
-import functools
 import json
 import logging
 import os
@@ -37,7 +47,6 @@ import select
 import subprocess
 import sys
 import time
-from array import array
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -51,12 +60,15 @@ from zarco_core.bus import Bus
 from zarco_core.clock import Clock, VirtualTimeEventLoop
 from zarco_core.component import ComponentContext, Factory
 from zarco_core.messages import Event, Fault, NavState
+from zarco_runtime.links.recorder import writer
 from zarco_runtime.links.recorder.schema import (
     LOCATION_FIX_SCHEMA,
     OPTIONS,
     RAW_CHUNK_SCHEMA,
-    json_default,
     message_schema,
+    packer,
+    plain,
+    raw_chunk_type,
 )
 from zarco_runtime.links.recorder.writer import BATCH, HEADER
 from zarco_runtime.supervision.supervisor import Boot, mission_to_json
@@ -68,34 +80,14 @@ log = logging.getLogger("zarco.recorder")
 
 #: topics of the derived foxglove.LocationFix positions (map panel)
 DERIVED = {NavState: "vessel", AuvTrack: "auv"}
-#: in simulation, hand a batch over once it holds this many records
-SIM_BATCH = 4000
+#: in simulation, the recorder hands a batch over this often (virtual time, s)
+SIM_PERIOD_S = 2.0
 #: loop turns a stopping recorder waits for the others' last messages
 SHUTDOWN_SPINS = 10
 #: how long a stopping runtime waits for the writer to finish its file (s)
 FINISH_TIMEOUT_S = 10.0
 
 Devices = Callable[[], Sequence[DeviceLink | None]]
-
-
-@functools.cache
-def software_version() -> str:
-    """The package version, and the git commit when run from a work tree (once a
-    process)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        v = version("zarco-runtime")
-    except PackageNotFoundError:
-        v = "unknown"
-    root = Path(__file__).resolve().parents[3]
-    if (root / ".git").exists():
-        with contextlib.suppress(OSError, subprocess.SubprocessError):
-            rev = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty"],
-                                 capture_output=True, text=True, timeout=5.0)
-            if rev.returncode == 0 and rev.stdout.strip():
-                v += f"+git.{rev.stdout.strip()}"
-    return v
 
 
 class Recorder:
@@ -111,12 +103,14 @@ class Recorder:
         self.devices = devices or (lambda: ())
         self.base_dir = base_dir
         self.counters: Counter[str] = Counter()
-        # the records waiting for the writer: channel, runtime time, bytes
-        self.chans: list[int] = []
-        self.times: list[float] = []
-        self.datas: list[bytes] = []
+        #: the records waiting for the writer: bus messages and raw chunks
+        self.pending: list[Any] = []
         self.channels: list[dict[str, Any]] = []
+        #: channel of each message type (and of each device's raw chunks)
         self.kinds: dict[type, int] = {}
+        self.pack = packer().encode
+        self.pack_into = packer().encode_into
+        self._per_record = 250.0  # bytes a record takes, packed (about)
         self.on = [True]
         self.stopped = ""
         self.paths: list[str] = []
@@ -124,38 +118,22 @@ class Recorder:
         self.base = ""
         self.t0: float | None = None
         self.proc: subprocess.Popen[bytes] | None = None
-        self.out: deque[tuple[bytes, int]] = deque()
+        self.out: deque[tuple[bytes | bytearray, int]] = deque()
         self.out_bytes = 0
-        self._partial = b""
+        self._partial: memoryview | bytes = b""
         self._lines = b""
         self._virtual = False
-        self._last_drain = time.monotonic()
-        self._hooked: set[int] = set()
-        self.version = ""
+        self._hooks: dict[str, Callable[[str, float, bytes], None]] = {}
         bus.tap(self._make_tap())
         self._attach()  # the devices built so far read nothing unrecorded
 
     # ------------------------------------------------------------- intake
 
     def _make_tap(self) -> Callable[[Any], None]:
-        kinds = self.kinds
-        chans, times, datas = self.chans.append, self.times.append, self.datas.append
-        dumps = orjson.dumps
-        on = self.on
-        register = self._register
-
-        def tap(msg: Any) -> None:
-            # log time: the message's own time (every bus message has one), so the
-            # tap costs the encoding and three appends
-            if on[0]:
-                ch = kinds.get(type(msg))
-                if ch is None:
-                    ch = register(type(msg))
-                chans(ch)
-                times(getattr(msg, "t", 0.0))
-                datas(dumps(msg, default=json_default, option=OPTIONS))
-
-        return tap
+        # the publisher's cost: one append, a builtin method (no Python frame);
+        # the encoding is done later, off its path.  A stopped recorder's list is
+        # emptied by its run loop (a tap cannot be removed).
+        return self.pending.append
 
     def _channel(self, topic: str, schema_name: str, schema: bytes, **kw: Any) -> int:
         cid = len(self.channels) + 1
@@ -170,8 +148,9 @@ class Recorder:
         name = kind.__name__
         extra: dict[str, Any] = {}
         if kind in DERIVED:
-            extra = {"derive": DERIVED[kind],
-                     "derive_schema": json.dumps(LOCATION_FIX_SCHEMA)}
+            fix = self._channel(f"/foxglove/{DERIVED[kind]}", "foxglove.LocationFix",
+                                json.dumps(LOCATION_FIX_SCHEMA).encode())
+            extra = {"derive": [DERIVED[kind], fix]}
         try:
             schema = message_schema(kind)
         except Exception:  # not a dataclass: recorded, schema-less
@@ -181,17 +160,26 @@ class Recorder:
         return cid
 
     def _hook(self, device: str) -> Callable[[str, float, bytes], None]:
+        """The raw-bytes hook of ``device`` (one pair of channels however often the
+        device's driver is rebuilt)."""
+        hook = self._hooks.get(device)
+        if hook is None:
+            hook = self._hooks[device] = self._make_hook(device)
+        return hook
+
+    def _make_hook(self, device: str) -> Callable[[str, float, bytes], None]:
         raw = json.dumps(RAW_CHUNK_SCHEMA).encode()
-        rx = self._channel(f"/raw/{device}/rx", "zarco.RawChunk", raw, raw=[device, "rx"])
-        tx = self._channel(f"/raw/{device}/tx", "zarco.RawChunk", raw, raw=[device, "tx"])
-        chans, times, datas = self.chans.append, self.times.append, self.datas.append
+        rx, tx = raw_chunk_type(device, "rx"), raw_chunk_type(device, "tx")
+        self.kinds[rx] = self._channel(f"/raw/{device}/rx", "zarco.RawChunk", raw,
+                                       raw=[device, "rx"])
+        self.kinds[tx] = self._channel(f"/raw/{device}/tx", "zarco.RawChunk", raw,
+                                       raw=[device, "tx"])
+        append = self.pending.append
         on = self.on
 
         def hook(direction: str, t: float, data: bytes) -> None:
             if on[0]:
-                chans(rx if direction == "rx" else tx)
-                times(t)
-                datas(data)
+                append((rx if direction == "rx" else tx)(t, data))
 
         return hook
 
@@ -219,7 +207,8 @@ class Recorder:
         boot = {"mission": mission_to_json(b.mission) if b.mission else None,
                 "autostart": b.autostart}
         now = self.clock.now()
-        return {"version": self.version, "config": orjson.dumps(self.cfg, option=OPTIONS).decode(),
+        # "version": the writer's (it asks git, off the runtime's time)
+        return {"config": orjson.dumps(self.cfg, option=OPTIONS).decode(),
                 "boot": json.dumps(boot), "t0": repr(self.t0),
                 "utc_offset_s": repr(self.clock.utc(now) - now),
                 "started_utc": self.base.removeprefix("zarco-"),
@@ -232,12 +221,12 @@ class Recorder:
             self.t0 = self.clock.now()
             stamp = dt.datetime.fromtimestamp(self.clock.utc(self.t0), dt.UTC)
             self.base = "zarco-" + stamp.strftime("%Y%m%dT%H%M%SZ")
-            self.version = software_version()
-        args = [sys.executable, "-m", "zarco_runtime.links.recorder.writer"]
+        # the writer by its file: it imports nothing of the project (a fast start)
+        args = [sys.executable, str(Path(writer.__file__).resolve())]
         if not self._virtual:
-            args += ["--nice", "5"]
+            args += ["--nice", "5"]  # on the boat: below the runtime, in its session
         self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     close_fds=True)
+                                     close_fds=True, start_new_session=self._virtual)
         assert self.proc.stdin is not None and self.proc.stdout is not None
         fd = self.proc.stdin.fileno()
         with contextlib.suppress(OSError, AttributeError):
@@ -261,7 +250,7 @@ class Recorder:
         for frame, n in data:
             self._queue(frame, n)
 
-    def _queue(self, frame: bytes, n: int) -> None:
+    def _queue(self, frame: bytes | bytearray, n: int) -> None:
         self.out.append((frame, n))
         self.out_bytes += len(frame)
         cap = self.rc.queue_mb * 1e6
@@ -282,24 +271,47 @@ class Recorder:
                 break
 
     def _batch(self) -> None:
-        """Frame the pending records and queue them for the writer."""
-        n = len(self.datas)
+        """Pack the pending records (one MessagePack call) and queue them for the
+        writer."""
+        pending = self.pending
+        n = len(pending)
         if not n:
             return
-        chans = array("H", self.chans).tobytes()
-        times = array("d", self.times).tobytes()
-        lens = array("I", map(len, self.datas)).tobytes()
-        payload = b"".join(self.datas)
-        self.chans.clear()
-        self.times.clear()
-        self.datas.clear()
+        items = pending.copy()
+        pending.clear()
         if self.stopped:
             return
         now = self.clock.now()
         offset = self.clock.utc(now) - now
-        body = b"".join((BATCH.pack(n, offset), chans, times, lens, payload))
-        self._queue(HEADER.pack(b"D", len(body)) + body, n)
+        kinds = self.kinds
+        types = list(map(type, items))
+        for kind in set(types).difference(kinds):
+            self._register(kind)
+        chans = list(map(kinds.__getitem__, types))
+        # the frame in one buffer (sized from the last ones): head, then channels and
+        # records packed together
+        pre = HEADER.size + BATCH.size
+        frame = bytearray(pre + int(n * self._per_record * 1.25) + 64)
+        try:
+            self.pack_into((chans, items), frame, pre)
+        except (TypeError, ValueError, OverflowError):  # a value MessagePack refuses
+            self.pack_into((chans, self._salvage(items)), frame, pre)
+        self._per_record = (len(frame) - pre) / n
+        HEADER.pack_into(frame, 0, b"D", len(frame) - HEADER.size)
+        BATCH.pack_into(frame, HEADER.size, n, offset)
+        self._queue(frame, n)
         self.counters["messages"] += n
+
+    def _salvage(self, items: list[Any]) -> list[Any]:
+        out = []
+        for m in items:
+            try:
+                self.pack(m)
+                out.append(m)
+            except (TypeError, ValueError, OverflowError):
+                out.append(plain(m))
+                self.counters["salvaged"] += 1
+        return out
 
     def _send(self) -> None:
         """Write queued frames to the writer's pipe (as much as it takes now)."""
@@ -311,7 +323,7 @@ class Recorder:
             if not self._partial:
                 frame, _n = self.out.popleft()
                 self.out_bytes -= len(frame)
-                self._partial = frame
+                self._partial = memoryview(frame)  # what the pipe did not take: no copy
             try:
                 k = os.write(fd, self._partial)
             except BlockingIOError:
@@ -331,9 +343,10 @@ class Recorder:
             data = os.read(proc.stdout.fileno(), 65536)
         except (BlockingIOError, OSError):
             data = b""
-        if not data:
-            return
         self._lines += data
+        self._parse_lines()
+
+    def _parse_lines(self) -> None:
         *lines, self._lines = self._lines.split(b"\n")
         for line in lines:
             with contextlib.suppress(ValueError):
@@ -365,35 +378,34 @@ class Recorder:
         self._fault(why)
         self.stopped = why
         self.on[0] = False
-        self.chans.clear()
-        self.times.clear()
-        self.datas.clear()
+        self.pending.clear()
         self._detach()
 
     # ---------------------------------------------------------------- run
 
     async def run(self) -> None:
         if self.stopped:  # out of disk: nothing more this run, but never end the process
-            await asyncio.Event().wait()
+            await self._discard()
         self._virtual = isinstance(asyncio.get_running_loop(), VirtualTimeEventLoop)
         self._start_writer()
         self._attach()
         proc = self.proc
         assert proc is not None
         period = self.rc.flush_s
+        # a simulation hands a batch over every SIM_PERIOD_S of its own time: each
+        # wake and each batch has a cost of its own (a turn of the loop, a write to
+        # the pipe), and a batch of a few hundred messages is still small enough
+        # that its messages die young (the garbage collector's young generation)
+        wake = max(period, SIM_PERIOD_S) if self._virtual else period
         try:
             while True:
-                await asyncio.sleep(period)
+                await asyncio.sleep(wake)
                 self._attach()
-                if self._virtual and len(self.datas) < SIM_BATCH \
-                        and time.monotonic() - self._last_drain < period:
-                    continue
-                self._last_drain = time.monotonic()
                 self._batch()
                 self._send()
                 self._events()
                 if self.stopped:
-                    await asyncio.Event().wait()
+                    await self._discard()
                 if proc.poll() is not None:
                     self._events()
                     raise RuntimeError(f"recorder writer exited with code {proc.returncode}")
@@ -404,6 +416,12 @@ class Recorder:
                 for _ in range(SHUTDOWN_SPINS):
                     await asyncio.sleep(0)
             self._finish()
+
+    async def _discard(self) -> None:
+        """Recording has stopped: forget what the tap still takes, for ever."""
+        while True:
+            self.pending.clear()
+            await asyncio.sleep(self.rc.flush_s)
 
     def _finish(self) -> None:
         """Hand over what is pending and let the writer finish its file (blocking:
@@ -421,15 +439,29 @@ class Recorder:
         with contextlib.suppress(OSError):
             if proc.stdin is not None:
                 proc.stdin.close()
+        # the writer's last words, up to the end of its output (it has exited then)
+        deadline = time.monotonic() + FINISH_TIMEOUT_S
+        if proc.stdout is not None:
+            fd = proc.stdout.fileno()
+            while (left := deadline - time.monotonic()) > 0:
+                if not select.select([fd], [], [], left)[0]:
+                    continue
+                try:
+                    data = os.read(fd, 65536)
+                except BlockingIOError:
+                    continue
+                except OSError:
+                    break
+                if not data:
+                    break
+                self._lines += data
         try:
-            proc.wait(timeout=FINISH_TIMEOUT_S)
+            proc.wait(timeout=max(0.0, deadline - time.monotonic()) + 1.0)
         except subprocess.TimeoutExpired:
             log.error("recorder: the writer did not finish in %.0f s", FINISH_TIMEOUT_S)
             proc.kill()
             proc.wait()
-        self.proc = proc
-        self._events()
-        self.proc = None
+        self._parse_lines()
         if proc.stdout is not None:
             proc.stdout.close()
 
@@ -453,4 +485,4 @@ def recorder_factory(cfg: RuntimeConfig, bus: Bus, clock: Clock, boot: Boot | No
     return RecorderFactory(cfg, bus, clock, boot, devices, base_dir)
 
 
-__all__ = ["Recorder", "RecorderFactory", "recorder_factory", "software_version"]
+__all__ = ["Recorder", "RecorderFactory", "recorder_factory"]

@@ -1,18 +1,31 @@
 """The recorder's writer process: framed batches on stdin → MCAP files.
 
-Runs as ``python -m zarco_runtime.links.recorder.writer`` beside the runtime,
-so that serialising to MCAP, compressing and writing to disk never take the
-runtime's event loop (or its interpreter lock): the runtime only encodes
-each message as JSON and hands batches over a pipe.
+Runs as ``python …/writer.py`` beside the runtime, so that JSON encoding,
+MCAP serialisation, compression and the disk never take the runtime's event
+loop (or its interpreter lock).  It imports nothing of the project (the
+standard library, msgspec and Foxglove's SDK; the project's geodesy only to
+put an AUV on the map): it starts in a few hundredths of a second.
 
 Input frames (``<cI`` kind and body length, then the body):
 
 * ``J``: a JSON command: ``start`` (where and how to write, the metadata of
-  every file), ``channel`` (a topic: its schema, and whether its messages are
-  raw device bytes or feed a derived ``foxglove.LocationFix`` topic);
-* ``D``: a batch: ``<Id`` count and UTC offset (UTC = runtime time + offset),
-  then the channel ids (uint16), runtime times (float64) and lengths (uint32)
-  of the records, then their bytes.
+  every file), ``channel`` (a topic and its JSON schema; ``raw``: [device,
+  "rx" or "tx"] for a device's raw bytes; ``derive``: ["vessel" or "auv",
+  the channel of its map topic]);
+* ``D``: a batch: ``<Id`` count n and UTC offset (UTC = runtime time +
+  offset), then MessagePack: [the n channel ids, the n records], each record
+  the map of a message's fields (a raw chunk's: ``t``, ``data``, ``device``,
+  ``dir``).  A record's time is its ``t``
+  (runtime time; a record without one takes the previous record's).
+
+Each record becomes one MCAP message on its channel, logged at its UTC time,
+as JSON (msgspec; a raw chunk gains its ``utc_s``); every ``1/location_hz``
+a vessel estimate (NavState) or an AUV track (AuvTrack) also gives a
+``foxglove.LocationFix`` on the map topic the runtime named for it.
+The MCAP files are written by Foxglove's SDK (``foxglove-sdk``: the Rust
+``mcap`` writer, about a microsecond a message against four to five for the
+pure-Python ``mcap`` writer; the same format, which the ``mcap`` package
+reads back).
 
 Every ``flush_s`` of wall time with messages pending, the chunk in progress is
 written out (and the file ``fdatasync``-ed every ``fsync_s``): a process
@@ -28,29 +41,37 @@ ignored: the writer ends when its input ends, after finishing the file.
 
 from __future__ import annotations
 
-import base64
 import contextlib
+import functools
 import json
+import math
 import os
 import select
 import signal
 import struct
+import subprocess
 import sys
 import time
-from array import array
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from itertools import compress
 from pathlib import Path
-from typing import IO, Any
+from typing import TYPE_CHECKING, Any
 
-import orjson
-from mcap.writer import CompressionType, Writer
+import msgspec
 
-from zarco_core.geodesy import LocalFrame
+if TYPE_CHECKING:  # imported where used: the runtime reads this module's framing only
+    from foxglove.mcap import MCAPWriteOptions
 
+#: a frame from the recorder to its writer: kind and body length, then the body
 HEADER = struct.Struct("<cI")
+#: a batch's head: number of records, UTC offset (UTC = runtime time + offset)
 BATCH = struct.Struct("<Id")
-#: most bytes of messages kept in one chunk before it is written (mcap chunk_size)
+#: most bytes of messages kept in one chunk before it is written
 CHUNK_BYTES = 1 << 20
+
+#: ``log(json, log_time_ns)``: one MCAP message on a channel of the open file
+Log = Callable[[bytes, int], None]
 
 
 @dataclass(slots=True)
@@ -61,7 +82,8 @@ class Channel:
     schema: str
     encoding: str = "json"
     raw: tuple[str, str] | None = None
-    derive: str = ""
+    #: a map topic derived from this one's messages: "vessel" or "auv", its channel
+    derive: tuple[str, int] | None = None
 
 
 @dataclass(slots=True)
@@ -79,6 +101,10 @@ class Options:
     metadata: dict[str, str] = field(default_factory=dict)
 
 
+def _finite(x: Any) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
 def emit(event: str, **kw: Any) -> None:
     """Tell the runtime (one JSON line on stdout)."""
     with contextlib.suppress(OSError, ValueError):
@@ -86,22 +112,64 @@ def emit(event: str, **kw: Any) -> None:
         sys.stdout.flush()
 
 
+@functools.cache
+def software_version() -> str:
+    """The package version, and the git commit when run from a work tree (once a
+    process)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        v = version("zarco-runtime")
+    except PackageNotFoundError:
+        v = "unknown"
+    root = Path(__file__).resolve().parents[3]
+    if (root / ".git").exists():
+        with contextlib.suppress(OSError, subprocess.SubprocessError):
+            rev = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty"],
+                                 capture_output=True, text=True, timeout=5.0)
+            if rev.returncode == 0 and rev.stdout.strip():
+                v += f"+git.{rev.stdout.strip()}"
+    return v
+
+
 def free_mb(path: str) -> float:
     st = os.statvfs(path)
     return st.f_bavail * st.f_frsize / 1e6
 
 
+def _options() -> MCAPWriteOptions:
+    from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+
+    # zstd on the writer's own thread (no pool: the machine's cores are the
+    # runtime's); message and chunk indexes, statistics and CRCs as usual.  No
+    # seeking: each chunk is built in memory and written whole.  (A seeking writer
+    # streams a chunk to the file behind a placeholder length and patches it when
+    # the chunk ends: a kill -9 in between leaves a last record no reader can
+    # skip; killed without seeking, the file ends in a cut record, which every
+    # MCAP reader reads up to.)
+    return MCAPWriteOptions(compression=MCAPCompression.Zstd, compression_threads=0,
+                            chunk_size=CHUNK_BYTES, profile="", disable_seeking=True)
+
+
 class McapFile:
-    """One MCAP file: schemas and channels registered when first used."""
+    """One MCAP file: its own SDK context, with a channel per recorded topic."""
 
     def __init__(self, path: Path, exclusive: bool, metadata: dict[str, str]) -> None:
+        import foxglove
+
         self.path = path
-        self.fh: IO[bytes] = open(path, "xb" if exclusive else "wb")  # noqa: SIM115
-        self.w = Writer(self.fh, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
-        self.w.start(profile="", library="zarco recorder (mcap-python)")
-        self.w.add_metadata("zarco", metadata)
-        self.schemas: dict[str, int] = {}
-        self.channels: dict[int, int] = {}
+        self.ctx = foxglove.Context()
+        self.w = foxglove.open_mcap(path, allow_overwrite=not exclusive, context=self.ctx,
+                                    writer_options=_options())
+        self.closed = False
+        try:
+            self.fd = os.open(path, os.O_RDONLY)  # for fdatasync and the size
+            self.w.write_metadata("zarco", metadata)
+        except Exception:
+            self._abandon()
+            raise
+        #: ``logs[channel id]``: how to log on that channel (None: not yet made)
+        self.logs: list[Log | None] = []
         self.messages = 0
         self.pending = 0
         # the new file's name must survive a power cut too
@@ -112,38 +180,58 @@ class McapFile:
             finally:
                 os.close(fd)
 
-    def channel(self, ch: Channel) -> int:
-        cid = self.channels.get(ch.id)
-        if cid is None:
-            sid = self.schemas.get(ch.schema_name)
-            if sid is None:
-                sid = self.w.register_schema(ch.schema_name, "jsonschema", ch.schema.encode())
-                self.schemas[ch.schema_name] = sid
-            cid = self.w.register_channel(ch.topic, ch.encoding, sid)
-            self.channels[ch.id] = cid
-        return cid
+    def channel(self, ch: Channel) -> Log:
+        """The log function of ``ch`` in this file (made when first used)."""
+        while len(self.logs) <= ch.id:
+            self.logs.append(None)
+        log = self.logs[ch.id]
+        if log is None:
+            import foxglove
 
-    def add(self, ch: Channel, log_ns: int, pub_ns: int, data: bytes) -> None:
-        self.w.add_message(self.channel(ch), log_ns, data, pub_ns)
-        self.messages += 1
-        self.pending += 1
+            meta = {"device": ch.raw[0], "dir": ch.raw[1]} if ch.raw else None
+            c = foxglove.Channel(ch.topic, message_encoding=ch.encoding, context=self.ctx,
+                                 schema=foxglove.Schema(name=ch.schema_name,
+                                                        encoding="jsonschema",
+                                                        data=ch.schema.encode()),
+                                 metadata=meta)
+            log = self.logs[ch.id] = c.base.log
+        return log
 
     def flush(self, sync: bool) -> None:
-        self.w.flush()  # type: ignore[no-untyped-call]
+        """Write the chunk in progress (a ``kill -9`` keeps it); ``sync``: to the disk."""
+        try:
+            self.w.flush()
+        except RuntimeError as exc:  # the SDK's I/O errors
+            raise OSError(str(exc)) from exc
         self.pending = 0
         if sync:
-            os.fdatasync(self.fh.fileno())
+            os.fdatasync(self.fd)
 
     def size(self) -> int:
-        return self.fh.tell()
+        return os.fstat(self.fd).st_size
 
     def finish(self) -> None:
+        """Write the summary and close (the file is then complete)."""
         try:
-            self.w.finish()  # type: ignore[no-untyped-call]
-            self.fh.flush()
-            os.fdatasync(self.fh.fileno())
+            self.w.close()
+            self.closed = True
+            os.fdatasync(self.fd)
+        except RuntimeError as exc:
+            raise OSError(str(exc)) from exc
         finally:
-            self.fh.close()
+            self._abandon()
+
+    def _abandon(self) -> None:
+        if not self.closed:
+            # a writer that failed must still be closed here, not when the
+            # interpreter is gone (the SDK would panic then)
+            with contextlib.suppress(Exception):
+                self.w.close()
+            self.closed = True
+        if getattr(self, "fd", -1) >= 0:
+            with contextlib.suppress(OSError):
+                os.close(self.fd)
+            self.fd = -1
 
 
 class Recording:
@@ -151,16 +239,25 @@ class Recording:
 
     def __init__(self, opts: Options) -> None:
         self.o = opts
-        self.channels: dict[int, Channel] = {}
+        self.channels: list[Channel | None] = [None]
         self.file: McapFile | None = None
         self.part = opts.first_part
         self.stopped = ""
         self.last_flush = time.monotonic()
         self.last_sync = self.last_flush
-        self.frame = LocalFrame(*opts.origin)
-        self.next_fix: dict[str, float] = {}
-        self.loc: dict[str, Channel] = {}
         self.dropped = 0
+        #: records logged at the previous record's time (they had no usable time)
+        self.untimed = 0
+        self.underived = 0
+        self.last_ns = 0
+        self.raw_ids: set[int] = set()
+        self.derive_ids: set[int] = set()
+        #: time of the next map fix, by the channel it is derived from
+        self.next_fix: dict[int, float] = {}
+        self.frame: Any = None
+        self.decode = msgspec.msgpack.Decoder().decode
+        enc = msgspec.json.Encoder()
+        self.encode, self.encode_lines = enc.encode, enc.encode_lines
 
     # ------------------------------------------------------------ files
 
@@ -184,7 +281,7 @@ class Recording:
         self.part += 1
         path, exclusive = self._path()
         path.parent.mkdir(parents=True, exist_ok=True)
-        meta = {**self.o.metadata, "part": str(self.part)}
+        meta = {"version": software_version(), **self.o.metadata, "part": str(self.part)}
         f = McapFile(path, exclusive, meta)
         emit("open", path=str(path), part=self.part)
         return f
@@ -225,15 +322,18 @@ class Recording:
     # --------------------------------------------------------- messages
 
     def add_channel(self, d: dict[str, Any]) -> None:
-        raw = d.get("raw")
+        raw, der = d.get("raw"), d.get("derive")
         ch = Channel(int(d["id"]), str(d["topic"]), str(d["schema_name"]), str(d["schema"]),
                      str(d.get("encoding", "json")), (str(raw[0]), str(raw[1])) if raw else None,
-                     str(d.get("derive", "")))
+                     (str(der[0]), int(der[1])) if der else None)
+        while len(self.channels) <= ch.id:
+            self.channels.append(None)
         self.channels[ch.id] = ch
-        if ch.derive and ch.derive not in self.loc:
-            schema = str(d["derive_schema"])
-            self.loc[ch.derive] = Channel(-1 - len(self.loc), f"/foxglove/{ch.derive}",
-                                          "foxglove.LocationFix", schema)
+        if ch.raw is not None:
+            self.raw_ids.add(ch.id)
+        if ch.derive is not None:
+            self.derive_ids.add(ch.id)
+            self.next_fix[ch.id] = -math.inf
 
     def batch(self, body: memoryview) -> None:
         n, offset = BATCH.unpack_from(body, 0)
@@ -244,72 +344,122 @@ class Recording:
             if not self._floor():
                 self.dropped += n
                 return
-            self.file = self._open()
-        pos = BATCH.size
-        chans = array("H")
-        chans.frombytes(body[pos:pos + 2 * n])
-        pos += 2 * n
-        times = array("d")
-        times.frombytes(body[pos:pos + 8 * n])
-        pos += 8 * n
-        lens = array("I")
-        lens.frombytes(body[pos:pos + 4 * n])
-        pos += 4 * n
-        f = self.file
-        channels = self.channels
+            try:
+                self.file = self._open()
+            except (OSError, RuntimeError) as exc:
+                self.dropped += n
+                self._stop(f"cannot open a recording file: {exc}: recording stopped", "error")
+                return
+        chans, records = self.decode(body[BATCH.size:])
+        if len(records) != n or len(chans) != n:
+            raise ValueError(f"a batch of {n} records holds {len(records)}")
+        if self.raw_ids:  # a raw chunk's UTC time, as its log time's
+            for i in compress(range(n), map(self.raw_ids.__contains__, chans)):
+                r = records[i]
+                r["utc_s"] = r["t"] + offset
         try:
-            for c, t, ln in zip(chans, times, lens, strict=True):
-                data = bytes(body[pos:pos + ln])
-                pos += ln
-                ch = channels.get(c)
-                if ch is None:
-                    continue
-                utc = t + offset
-                ns = int(utc * 1e9)
-                if ch.raw is not None:
-                    data = orjson.dumps({"t": t, "utc_s": utc, "device": ch.raw[0],
-                                         "dir": ch.raw[1],
-                                         "data": base64.b64encode(data).decode("ascii")})
-                    f.add(ch, ns, ns, data)
-                    continue
-                f.add(ch, ns, ns, data)
-                if ch.derive and t >= self.next_fix.get(ch.derive, -1e300):
-                    self._derive(f, ch.derive, data, offset, ns)
-        except OSError as exc:
-            self._stop(f"write failed: {exc}: recording stopped", "error")
+            lines = self.encode_lines(records).split(b"\n")
+        except (TypeError, ValueError):  # a dict key JSON cannot carry
+            lines = [self._salvage(r) for r in records]
+            lines.append(b"")
+        lines.pop()
+        f = self.file
+        logs = f.logs
+        if len(logs) < len(self.channels):
+            logs.extend([None] * (len(self.channels) - len(logs)))
+        written = 0
+        good = self.last_ns
+        try:
+            for c, r, data in zip(chans, records, lines, strict=True):
+                log = logs[c]
+                if log is None:
+                    ch = self.channels[c]
+                    if ch is None:
+                        continue
+                    log = f.channel(ch)
+                try:
+                    ns = int((r["t"] + offset) * 1e9)
+                    log(data, ns)
+                    good = ns
+                except (KeyError, TypeError, ValueError, OverflowError):
+                    # no time (none, NaN, beyond 1970..2554 UTC): at the previous one's
+                    self.untimed += 1
+                    log(data, good)
+                written += 1
+            if self.derive_ids:
+                nxt = self.next_fix
+                for i in compress(range(n), map(self.derive_ids.__contains__, chans)):
+                    r = records[i]
+                    try:
+                        if not r["t"] >= nxt[chans[i]]:  # at most location_hz
+                            continue
+                        written += self._derive(f, chans[i], r, offset)
+                    except (LookupError, ArithmeticError, ValueError, TypeError):
+                        self.underived += 1  # no time, or values no map can show
+        finally:
+            self.last_ns = good
+            f.messages += written
+            f.pending += written
 
-    def _derive(self, f: McapFile, what: str, data: bytes, offset: float, ns: int) -> None:
-        m = orjson.loads(data)
-        t = m.get("t")
-        if not isinstance(t, float) or t < self.next_fix.get(what, -1e300):
-            return
+    def _salvage(self, r: Any) -> bytes:
+        def plain(x: Any) -> Any:
+            if isinstance(x, dict):
+                return {k if isinstance(k, (str, int, float)) else repr(k): plain(v)
+                        for k, v in x.items()}
+            if isinstance(x, list):
+                return [plain(v) for v in x]
+            return x
+
+        return self.encode(plain(r))
+
+    def _derive(self, f: McapFile, c: int, m: Any, offset: float) -> int:
+        """The map fix (``foxglove.LocationFix``) of a vessel estimate or an AUV
+        track, at most ``location_hz``: 1 if one was written."""
+        ch = self.channels[c]
+        if ch is None or ch.derive is None or not isinstance(m, dict):
+            return 0
+        what, fix_id = ch.derive
+        t = float(m["t"])
         if what == "vessel":
             lat, lon = m.get("lat_deg"), m.get("lon_deg")
-            if not m.get("pos_valid") or lat is None or lon is None:
-                return
+            if not (m.get("pos_valid") and _finite(lat) and _finite(lon)):
+                return 0
             cov = m.get("cov") or []
-            if len(cov) == 25 and all(isinstance(c, float) for c in (cov[0], cov[1], cov[6])):
-                ee, en, nn = cov[6], cov[1], cov[0]
+            if len(cov) == 25 and all(_finite(v) for v in (cov[0], cov[1], cov[6])):
+                ee, en, nn = cov[6], cov[1], cov[0]  # (x north, y east) → East-North-Up
                 pc, kind = [ee, en, 0.0, en, nn, 0.0, 0.0, 0.0, 0.0], 3
             else:
                 pc, kind = [0.0] * 9, 0
             color = {"r": 0.1, "g": 0.4, "b": 1.0, "a": 1.0}
         else:
             x, y = m.get("kf_x_m"), m.get("kf_y_m")
-            if m.get("lost") or not (int(m.get("flags") or 0) & 1) or x is None or y is None:
-                return
+            if m.get("lost") or not (int(m.get("flags") or 0) & 1) \
+                    or not (_finite(x) and _finite(y)):
+                return 0
+            if self.frame is None:  # only with an AUV: the project's geodesy (pymap3d)
+                from zarco_core.geodesy import LocalFrame
+
+                self.frame = LocalFrame(*self.o.origin)
             lat, lon, _alt = self.frame.to_geodetic(x, y)
-            s = m.get("kf_pos_sigma_m")
-            s2 = s * s if isinstance(s, float) else 0.0
+            sigma: Any = m.get("kf_pos_sigma_m")
+            s2 = float(sigma) * float(sigma) if _finite(sigma) else 0.0
             pc, kind = [s2, 0.0, 0.0, 0.0, s2, 0.0, 0.0, 0.0, 0.0], 2 if s2 else 0
             color = {"r": 1.0, "g": 0.3, "b": 0.1, "a": 1.0}
-        self.next_fix[what] = t + 1.0 / self.o.location_hz
-        utc = t + offset
-        sec = int(utc)
-        fix = {"timestamp": {"sec": sec, "nsec": int((utc - sec) * 1e9)}, "frame_id": what,
-               "latitude": lat, "longitude": lon, "altitude": 0.0,
-               "position_covariance": pc, "position_covariance_type": kind, "color": color}
-        f.add(self.loc[what], ns, int(utc * 1e9), orjson.dumps(fix))
+        fch = self.channels[fix_id] if fix_id < len(self.channels) else None
+        if fch is None:
+            return 0
+        self.next_fix[c] = t + 1.0 / self.o.location_hz
+        try:
+            utc = t + offset
+            sec = int(utc)
+            fix = {"timestamp": {"sec": sec, "nsec": int((utc - sec) * 1e9)},
+                   "frame_id": what, "latitude": lat, "longitude": lon, "altitude": 0.0,
+                   "position_covariance": pc, "position_covariance_type": kind,
+                   "color": color}
+            f.channel(fch)(self.encode(fix), int(utc * 1e9))
+        except (ValueError, OverflowError):  # a time beyond what MCAP holds
+            return 0
+        return 1
 
     # ------------------------------------------------------------ timing
 
@@ -341,57 +491,66 @@ class Recording:
             self._close()
 
 
-def _read_exact(fd: int, n: int, buf: bytearray) -> bool:
-    """Read ``n`` bytes into ``buf`` (cleared first); False at end of input."""
-    buf.clear()
-    while len(buf) < n:
-        chunk = os.read(fd, n - len(buf))
-        if not chunk:
-            return False
-        buf += chunk
-    return True
+def _read_exact(fd: int, n: int) -> bytearray | None:
+    """The next ``n`` bytes of the input (read into place); None at its end."""
+    buf = bytearray(n)
+    view = memoryview(buf)
+    got = 0
+    while got < n:
+        k = os.readv(fd, [view[got:]])
+        if not k:
+            return None
+        got += k
+    return buf
 
 
 def serve(fd: int) -> int:
     rec: Recording | None = None
-    hdr = bytearray()
-    body = bytearray()
-    while True:
-        timeout = rec.o.flush_s / 2 if rec is not None and rec.file is not None else None
-        ready, _, _ = select.select([fd], [], [], timeout)
-        if not ready:
+    try:
+        while True:
+            timeout = rec.o.flush_s / 2 if rec is not None and rec.file is not None else None
+            ready, _, _ = select.select([fd], [], [], timeout)
+            if not ready:
+                if rec is not None:
+                    rec.tick()
+                continue
+            hdr = _read_exact(fd, HEADER.size)
+            if hdr is None:
+                break
+            kind, length = HEADER.unpack(hdr)
+            body = _read_exact(fd, length)
+            if body is None:
+                break
+            if kind == b"D":
+                if rec is not None:
+                    rec.batch(memoryview(body))
+            elif kind == b"J":
+                d = json.loads(body)
+                op = d.get("op")
+                if op == "start":
+                    o = Options(**{k: v for k, v in d.items() if k != "op"})
+                    o.origin = (float(o.origin[0]), float(o.origin[1]), float(o.origin[2]))
+                    rec = Recording(o)
+                elif op == "channel" and rec is not None:
+                    rec.add_channel(d)
+                elif op == "flush" and rec is not None:
+                    rec.tick(force=True)
             if rec is not None:
                 rec.tick()
-            continue
-        if not _read_exact(fd, HEADER.size, hdr):
-            break
-        kind, length = HEADER.unpack(hdr)
-        if not _read_exact(fd, length, body):
-            break
-        if kind == b"D":
-            if rec is not None:
-                rec.batch(memoryview(body))
-        elif kind == b"J":
-            d = json.loads(body)
-            op = d.get("op")
-            if op == "start":
-                o = Options(**{k: v for k, v in d.items() if k != "op"})
-                o.origin = (float(o.origin[0]), float(o.origin[1]), float(o.origin[2]))
-                rec = Recording(o)
-            elif op == "channel" and rec is not None:
-                rec.add_channel(d)
-            elif op == "flush" and rec is not None:
-                rec.tick(force=True)
+    finally:
         if rec is not None:
-            rec.tick()
-    if rec is not None:
-        rec.close()
+            rec.close()
     return 0
 
 
 def main() -> int:
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, signal.SIG_IGN)
+    # a batch process: woken by the runtime's data, it waits its turn instead of
+    # preempting the runtime (Linux's SCHED_BATCH; nice 5 on the boat besides)
+    if hasattr(os, "sched_setscheduler"):
+        with contextlib.suppress(OSError):
+            os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
     if len(sys.argv) > 2 and sys.argv[1] == "--nice":
         with contextlib.suppress(OSError):
             os.nice(int(sys.argv[2]))
