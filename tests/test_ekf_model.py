@@ -198,7 +198,7 @@ def test_the_joint_update_inverse_handles_any_number_of_rows() -> None:
     heading together) fall back from the closed forms to a general inverse."""
     import numpy as np
 
-    from zarco_runtime.navigation.ekf import _spd_inverse
+    from zarco_runtime.navigation.ekf.updates import spd_inverse as _spd_inverse
 
     rng = np.random.default_rng(3)
     for n in range(1, 8):

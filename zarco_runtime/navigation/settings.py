@@ -9,7 +9,7 @@ from zarco_core.config import spec
 
 @dataclass(slots=True)
 class Navigation:
-    """Navigation: the EKF (``navigation/ekf.py``, settings in ``[ekf]``) or the
+    """Navigation: the EKF (``navigation/ekf/``, settings in ``[ekf]``) or the
     first estimate (per-axis constant-velocity filter on GPS, and a complementary
     filter of compass heading with the gyro rate; the settings below)."""
 
