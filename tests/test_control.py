@@ -66,13 +66,13 @@ def test_heading_reference_is_bounded_far_from_the_line() -> None:
 def test_integral_frozen_when_yaw_saturates_and_outside_window() -> None:
     leg = Leg(0, 0.0, 0.0, 100.0, 0.0, 1.0)
     c = LineController(VM, CTL, VM.thruster_lag_s, DT)
-    n0 = nav(y=0.2)
-    c.step(n0, leg, d=0.2)
+    n0 = nav(y=0.02)
+    c.step(n0, leg, d=0.02)
     c.commit(n0, Allocation(50, -20, 0, 0, 0, 0, 0, 0))
-    assert c.l_int == pytest.approx(0.2 * DT)
+    assert c.l_int == pytest.approx(0.02 * DT)
     # saturated towards port while d > 0 asks for more port moment: no integration
     before = c.l_int
-    c.step(n0, leg, d=0.2)
+    c.step(n0, leg, d=0.02)
     c.commit(n0, Allocation(50, -40, 0, 0, 0, 0, 0, -1))
     assert c.l_int == before
     # far outside the integration window: no integration either

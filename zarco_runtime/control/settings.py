@@ -35,10 +35,14 @@ class Control:
                                "error to the GPS one", min=0.001, max=60.0)
     integral_window_m: float = spec(1.0, "m", "integrate d only while |d| is below this",
                                     min=0.0, max=100.0)
-    max_intercept_deg: float = spec(60.0, "deg", "largest course offset to the line",
-                                    min=1.0, max=90.0)
-    current_tau_s: float = spec(20.0, "s", "water-current observer time constant "
-                                "(0 disables the current feedforward)", min=0.0, max=3600.0)
+    max_intercept_deg: float = spec(35.0, "deg", "largest heading offset from the crab "
+                                    "heading ψ0: at low speed through the water a wider "
+                                    "swing outruns the yaw rate the thrusters can give and "
+                                    "the line tracking cycles", min=1.0, max=90.0)
+    current_feedforward: bool = spec(True, "", "steer the crab angle of the estimated "
+                                     "water current (off: the integral alone absorbs it)")
+    mismatch_compensation: bool = spec(True, "", "estimate the port/starboard thrust "
+                                       "mismatch and command through its inverse")
     speed_kp: float = spec(60.0, "N/(m/s)", "speed controller proportional gain", min=0.0,
                            max=1e4)
     speed_ki: float = spec(10.0, "N/m", "speed controller integral gain", min=0.0, max=1e4)
