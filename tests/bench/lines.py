@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import sys
 import time
@@ -133,6 +134,50 @@ def grid_cases(speeds: tuple[float, ...] = SPEEDS,
     return cases
 
 
+def oscillation(d: Any, rate_hz: float) -> dict[str, float]:
+    """Is there a sustained oscillation in the cross-track series ``d`` (m, sampled
+    at ``rate_hz``)?  The largest line of its amplitude spectrum between periods
+    of 5 and 50 s (Hann window, mean removed: the amplitude (m) a sinusoid of that
+    period would have), and the RMS over its first and last thirds (an oscillation
+    that dies out has a smaller last third; a growing or sustained one not)."""
+    import numpy as np
+
+    x = np.asarray(d, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size < 10 * rate_hz:
+        return {"peak_amplitude_m": math.nan, "peak_period_s": math.nan,
+                "rms_first_third_m": math.nan, "rms_last_third_m": math.nan}
+    w = np.hanning(x.size)
+    spec = np.abs(np.fft.rfft((x - x.mean()) * w)) * 2.0 / w.sum()
+    f = np.fft.rfftfreq(x.size, 1.0 / rate_hz)
+    band = (f >= 1.0 / 50.0) & (f <= 1.0 / 5.0)
+    i = int(np.argmax(np.where(band, spec, -1.0)))
+    n3 = x.size // 3
+    return {"peak_amplitude_m": round(float(spec[i]), 4),
+            "peak_period_s": round(float(1.0 / f[i]), 1),
+            "rms_first_third_m": round(float(np.sqrt(np.mean(x[:n3] ** 2))), 4),
+            "rms_last_third_m": round(float(np.sqrt(np.mean(x[-n3:] ** 2))), 4)}
+
+
+def following_leg(c: dict[str, Any], res: Any) -> dict[str, Any] | None:
+    """Figures of the leg the current runs along (within 10°), if the case has one:
+    its settled cross-track RMS and :func:`oscillation`."""
+    import numpy as np
+
+    from zarco_tools.sim_report import SETTLE_M, xtrack_series
+
+    along, d, leg_idx = xtrack_series(res.log, res.legs)
+    for leg in res.legs:
+        rel = math.remainder(math.radians(c["current_dir_deg"]) - leg.course_rad, math.tau)
+        if abs(rel) > math.radians(10.0):
+            continue
+        sel = (leg_idx == leg.index) & (along >= SETTLE_M)
+        dd = d[sel]
+        return {"leg": leg.index, "rms_m": round(float(np.sqrt(np.mean(dd**2))), 4),
+                **oscillation(dd, res.scenario.scenario.record_hz)}
+    return None
+
+
 def run_grid(seeds: list[int], speeds: tuple[float, ...] = SPEEDS,
              dirs: tuple[float, ...] = GRID_CURRENT_DIRS,
              plants: list[int] | None = None) -> dict[str, Any]:
@@ -148,7 +193,10 @@ def run_grid(seeds: list[int], speeds: tuple[float, ...] = SPEEDS,
     for seed in seeds:
         for c in cases:
             i += 1
-            r = run(c["speed_mps"], seed, c["overrides"])
+            scn = load_scenario(RECT, [f"mission.speed_mps={c['speed_mps']}", *c["overrides"]],
+                                seed)
+            res = run_scenario(scn)
+            r = res.report
             fig = {"plant": c["plant"], "signs": c["signs"],
                    "current_dir_deg": c["current_dir_deg"], "speed_mps": c["speed_mps"],
                    "seed": seed,
@@ -159,13 +207,19 @@ def run_grid(seeds: list[int], speeds: tuple[float, ...] = SPEEDS,
                    "saturation_fraction": round(r["saturation_fraction"], 3),
                    "nav_heading_rms_deg": round(r["nav_heading_rms_deg"], 2),
                    "stop": r["stop"]}
+            fol = following_leg(c, res)
+            if fol is not None:
+                fig["following_leg"] = fol
             fig["ok"] = bool(fig["rms_m"] <= RMS_TARGET_M and fig["p95_m"] <= P95_TARGET_M
                              and r["stop"] == "mission complete")
             out.append(fig)
+            tail = (f" | following leg RMS {fol['rms_m']:.3f}, peak "
+                    f"{fol['peak_amplitude_m']:.3f} m at {fol['peak_period_s']:.0f} s"
+                    if fol else "")
             print(f"[{i}/{n} {time.perf_counter() - w0:6.0f} s] plant {c['plant']:2d} "
                   f"{c['signs']} cur {c['current_dir_deg']:3.0f}° {c['speed_mps']:.1f} m/s "
                   f"seed {seed}: RMS {fig['rms_m']:.4f} p95 {fig['p95_m']:.3f} "
-                  f"max {fig['max_m']:.3f} steps {fig['command_step_rms']:.1f}"
+                  f"max {fig['max_m']:.3f} steps {fig['command_step_rms']:.1f}{tail}"
                   f"{'' if fig['ok'] else '  FAIL'}", file=sys.stderr)
     worst = max(out, key=lambda f: max(f["rms_m"] / RMS_TARGET_M, f["p95_m"] / P95_TARGET_M))
     return {"factors": list(FACTORS), "current_mps": GRID_CURRENT_MPS,
@@ -173,7 +227,29 @@ def run_grid(seeds: list[int], speeds: tuple[float, ...] = SPEEDS,
             "runs": n, "passed": sum(f["ok"] for f in out),
             "rms_max_m": max(f["rms_m"] for f in out), "p95_max_m": max(f["p95_m"] for f in out),
             "command_step_rms_max": max(f["command_step_rms"] for f in out),
-            "worst": worst, "cases": out}
+            "worst": worst, "following_legs": following_summary(out), "cases": out}
+
+
+def following_summary(out: list[dict[str, Any]]) -> dict[str, Any]:
+    """The legs with the current running along them, per speed: the worst RMS and
+    the largest oscillation line (amplitude, period) with its case."""
+    res: dict[str, Any] = {}
+    for speed in sorted({f["speed_mps"] for f in out}):
+        fl = [f for f in out if f["speed_mps"] == speed and "following_leg" in f]
+        if not fl:
+            continue
+        peak = max(fl, key=lambda f: f["following_leg"]["peak_amplitude_m"])
+        res[f"{speed:.1f}"] = {
+            "legs": len(fl),
+            "rms_max_m": max(f["following_leg"]["rms_m"] for f in fl),
+            "peak_amplitude_max_m": peak["following_leg"]["peak_amplitude_m"],
+            "peak_period_s": peak["following_leg"]["peak_period_s"],
+            "peak_case": {k: peak[k] for k in ("plant", "signs", "seed")},
+            "rms_last_over_first_third_max": round(max(
+                f["following_leg"]["rms_last_third_m"]
+                / max(1e-9, f["following_leg"]["rms_first_third_m"]) for f in fl), 2),
+        }
+    return res
 
 
 def add_grid_args(ap: argparse.ArgumentParser) -> None:
@@ -193,6 +269,10 @@ def grid_figures(args: argparse.Namespace) -> dict[str, Any]:
     print(f"mismatch grid: {g['passed']}/{g['runs']} runs within RMS ≤ {RMS_TARGET_M} m and "
           f"p95 ≤ {P95_TARGET_M} m; worst RMS {g['rms_max_m']:.4f} m, worst p95 "
           f"{g['p95_max_m']:.3f} m; worst case {g['worst']}", file=sys.stderr)
+    for speed, fl in g["following_legs"].items():
+        print(f"  current along the leg at {speed} m/s: leg RMS ≤ {fl['rms_max_m']:.3f} m, "
+              f"largest oscillation {fl['peak_amplitude_max_m']:.3f} m at "
+              f"{fl['peak_period_s']:.0f} s ({fl['peak_case']})", file=sys.stderr)
     return {"grid": g}
 
 

@@ -2,8 +2,10 @@
 
 Steering, in the paper's arctan anti-windup form:
 
-    ψ_ref = ψ0 − arctan(σ),   σ = (K_d d + K_l ∫d dt + K_v ḋ) / K_ψ
+    ψ_ref = ψ0 − arctan(σ),   σ = (K_d d + K_l ∫d dt + K_v ḋ + K_w ŵ) / K_ψ
     N_cmd = K_ψ (ψ_ref − ψ) − K_r r − K_n N̂t
+
+(ŵ, the estimated sway force of gusts, only with ``control.gust_feedforward``.)
 
 * K come from the LQR design scheduled on the leg speed (``lqr.py``).  With
   σ small this is exactly the LQR state feedback, the unmeasured sway v
@@ -144,10 +146,11 @@ class LineController:
         # speed through the water along the line: what the speed loop aims at,
         # unless the boat is observed slower (thrust limit against a current)
         u_s = max(0.05, min(u_w_ref, u_w * math.cos(crab) + _SCHED_MARGIN_MPS))
-        k_d, k_l, k_e, k_r, k_v, k_n = self.schedule.at(u_s)
-        self._k = (k_d, k_l, k_e, k_r, k_v, k_n)
+        k_d, k_l, k_e, k_r, k_v, k_n, k_w = self.schedule.at(u_s)
+        self._k = (k_d, k_l, k_e, k_r, k_v, k_n, k_w)
+        w = self.water.sway_force if ctl.gust_feedforward else 0.0
         k_psi = max(1e-3, k_e - k_v * u_s * math.cos(crab))
-        sigma = (k_d * d + k_l * self.l_int + k_v * d_dot) / k_psi
+        sigma = (k_d * d + k_l * self.l_int + k_v * d_dot + k_w * w) / k_psi
         lim = math.radians(ctl.max_intercept_deg)
         offset = max(-lim, min(lim, math.atan(sigma)))
         psi_ref = wrap(psi0 - offset)
