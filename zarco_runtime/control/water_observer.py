@@ -6,7 +6,7 @@ An eight-state Kalman filter run at the control rate,
 x = [u, v, c_n, c_e, Δ, κ, w, w_x]:
 
 * u, v: surge and sway speed through the water (body frame, m/s), predicted by
-  the nominal hull model (DESIGN.md §4)
+  the nominal hull model (the paper's, section III)
 
       (m − X_u') u' = X_u u + X_|u|u |u| u + X + w_x
       (m − Y_v') v' = Y_v v − m u r + w
