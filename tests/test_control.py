@@ -66,13 +66,13 @@ def test_heading_reference_is_bounded_far_from_the_line() -> None:
 def test_integral_frozen_when_yaw_saturates_and_outside_window() -> None:
     leg = Leg(0, 0.0, 0.0, 100.0, 0.0, 1.0)
     c = LineController(VM, CTL, VM.thruster_lag_s, DT)
-    n0 = nav(y=0.2)
-    c.step(n0, leg, d=0.2)
+    n0 = nav(y=0.02)
+    c.step(n0, leg, d=0.02)
     c.commit(n0, Allocation(50, -20, 0, 0, 0, 0, 0, 0))
-    assert c.l_int == pytest.approx(0.2 * DT)
+    assert c.l_int == pytest.approx(0.02 * DT)
     # saturated towards port while d > 0 asks for more port moment: no integration
     before = c.l_int
-    c.step(n0, leg, d=0.2)
+    c.step(n0, leg, d=0.02)
     c.commit(n0, Allocation(50, -40, 0, 0, 0, 0, 0, -1))
     assert c.l_int == before
     # far outside the integration window: no integration either
@@ -105,3 +105,37 @@ def test_anticipating_turn_switches_early() -> None:
     # radius = 1 / 0.2618 ≈ 3.8 m; a 90° turn starts ≈ 3.8 m before the corner
     assert g.update(95.0, 0.0).leg.index == 0
     assert g.update(96.5, 0.0).leg.index == 1
+
+
+def test_crab_angle_holds_the_line_at_the_commanded_ground_speed() -> None:
+    # 0.35 m/s flowing north-east across a northbound leg at 0.5 m/s: the water
+    # passes at 0.5 − 0.247 along the line and 0.247 across it, so the bow points
+    # atan(0.247 / 0.253) = 44.4° to port of the line (asin would give 78°)
+    leg = Leg(0, 0.0, 0.0, 100.0, 0.0, 0.5)
+    c = LineController(VM, CTL, VM.thruster_lag_s, DT)
+    cn = ce = 0.35 * math.sqrt(0.5)
+    c.water.x[2], c.water.x[3] = cn, ce
+    dem = c.step(nav(vn=0.5), leg, d=0.0)
+    assert dem.psi0_rad == pytest.approx(-math.atan2(ce, 0.5 - cn), abs=1e-9)
+    assert math.degrees(-dem.psi0_rad) == pytest.approx(44.4, abs=0.1)
+
+
+@pytest.mark.parametrize("speed", [0.2, 0.5, 1.0, 1.5])
+def test_lqr_stays_stable_on_a_plant_that_is_not_its_model(speed: float) -> None:
+    # designed on the nominal hull, closed around hulls with mass, inertia and
+    # damping ±25 %, thruster lag 0.1–0.3 s, thrust ±15 % and the speed through
+    # the water 20 % below / 10 % above the schedule's
+    from dataclasses import replace
+    from itertools import product
+
+    g = design(speed, VM, CTL, VM.thruster_lag_s, DT)
+    k = np.array(g.k).reshape(1, -1)
+    worst = 0.0
+    for m, i, dmp, lag, kap, ur in product((0.75, 1.25), (0.75, 1.25), (0.75, 1.25),
+                                           (0.1, 0.3), (0.85, 1.15), (0.8, 1.1)):
+        vm = replace(VM, m_kg=VM.m_kg * m, y_vdot=VM.y_vdot * m, iz_kgm2=VM.iz_kgm2 * i,
+                     n_rdot=VM.n_rdot * i, y_v=VM.y_v * dmp, n_r=VM.n_r * dmp)
+        a, b = steering_model(speed * ur, vm, lag)
+        ad, bd = c2d(a, b * kap, DT)
+        worst = max(worst, float(np.abs(np.linalg.eigvals(ad - bd @ k)).max()))
+    assert worst < 0.995

@@ -67,10 +67,29 @@ def test_saturation_keeps_yaw_and_cuts_surge() -> None:
 
 
 def test_moment_beyond_capacity_is_cut_and_flagged() -> None:
-    a = allocate(0.0, -500.0, B, M, M)
+    # yaw first: all the pair can give, the surge rising to what that takes
+    a = allocate(0.0, -500.0, B, M, M, surge_raise_max_n=math.inf)
     assert a.sat_n == -1
     assert a.f1_n == pytest.approx(-75.0) and a.f2_n == pytest.approx(125.0)
     assert -100.0 <= a.u1 <= 100.0 and -100.0 <= a.u2 <= 100.0
+
+
+def test_differential_does_not_push_the_boat_ahead() -> None:
+    # reverse is weaker than forward: at zero surge demand the full differential
+    # would add 50 N ahead; by default the moment is cut instead
+    a = allocate(0.0, -500.0, B, M, M)
+    assert a.sat_n == -1
+    assert a.x_n == pytest.approx(0.0, abs=1e-9)
+    assert a.f1_n == pytest.approx(-75.0) and a.f2_n == pytest.approx(75.0)
+    # a bounded raise is honoured exactly
+    b = allocate(10.0, 500.0, B, M, M, surge_raise_max_n=20.0)
+    assert b.sat_n == 1 and b.x_n == pytest.approx(30.0)
+    # a moment the pair can give at the demanded surge is not touched
+    c = allocate(100.0, 30.0, B, M, M)
+    assert c.sat_n == 0 and c.n_nm == pytest.approx(30.0) and c.x_n == pytest.approx(100.0)
+    # braking: the differential may bring the surge up to zero, not beyond
+    d = allocate(-100.0, 60.0, B, M, M)
+    assert d.x_n <= 1e-9 and d.n_nm > 0.0
 
 
 @pytest.mark.parametrize("x,n", [(math.nan, 0.0), (0.0, math.inf), (-math.inf, math.nan)])

@@ -7,9 +7,10 @@ Port thruster 1 sits at y = −b: F1 > F2 yaws the boat clockwise (to starboard)
 
 Saturation: yaw authority is what keeps the boat on its line, so the
 differential thrust is honoured first (up to what the two thrusters can give
-together) and the common-mode (surge) thrust gives way.  The result says
-which demand was cut and in which direction, so the controllers stop
-integrating that way (anti-windup).
+together) and the common-mode (surge) thrust gives way, down but not up: a
+differential never drives the boat ahead of its surge demand (see
+:func:`allocate`).  The result says which demand was cut and in which
+direction, so the controllers stop integrating that way (anti-windup).
 """
 
 from __future__ import annotations
@@ -47,8 +48,16 @@ ZERO = Allocation(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0)
 
 
 def allocate(x_des: float, n_des: float, b_m: float, port: ThrusterMap,
-             starboard: ThrusterMap) -> Allocation:
+             starboard: ThrusterMap, surge_raise_max_n: float = 0.0) -> Allocation:
     """Allocate surge force ``x_des`` (N) and yaw moment ``n_des`` (N m).
+
+    The differential may push the common-mode thrust at most
+    ``surge_raise_max_n`` (N, of X) above the demand: reverse thrust is weaker
+    than forward, so a large differential at a small surge demand would
+    otherwise drive the boat ahead exactly when it is turning hardest.  At low
+    speed through the water that surge kick multiplies the steering gain and
+    the line tracking cycles; the yaw moment is cut instead (``sat_n``).
+    ``math.inf`` gives the yaw moment absolute priority.
 
     Non-finite demands give zero thrust and a fault string.
     """
@@ -60,6 +69,11 @@ def allocate(x_des: float, n_des: float, b_m: float, port: ThrusterMap,
     # half differential thrust, limited to what the pair can produce
     d = n_des / (2.0 * b_m)
     d_lo, d_hi = (lo1 - hi2) / 2.0, (hi1 - lo2) / 2.0
+    if surge_raise_max_n < math.inf:
+        h0 = max(x_des / 2.0, 0.0)
+        g = surge_raise_max_n / 2.0
+        d_hi = min(d_hi, max(0.0, h0 + g - lo2))
+        d_lo = max(d_lo, -max(0.0, h0 + g - lo1))
     sat_n = 0
     if d > d_hi:
         d, sat_n = d_hi, 1

@@ -2,24 +2,42 @@
 
 Steering, in the paper's arctan anti-windup form:
 
-    ψ_ref = ψ0 − arctan(σ),   σ = (K_d d + K_l ∫d dt + K_v ḋ) / K_ψ
+    ψ_ref = ψ0 − arctan(σ),   σ = (K_d d + K_l ∫d dt + K_v ḋ + K_w ŵ) / K_ψ
     N_cmd = K_ψ (ψ_ref − ψ) − K_r r − K_n N̂t
+
+(ŵ, the estimated sway force of gusts, only with ``control.gust_feedforward``.)
 
 * K come from the LQR design scheduled on the leg speed (``lqr.py``).  With
   σ small this is exactly the LQR state feedback, the unmeasured sway v
   replaced by the measured cross-track rate ḋ = U e + v (GPS velocity: this
   is how the gust-driven sway is seen), and N̂t the moment the thrusters are
   producing (our own command through the thruster lag).
-* ψ0 = ψ_traj − asin(c_⊥ / U) is the crab angle that cancels the cross-line
-  component of the water current, estimated by :class:`CurrentObserver`;
-  the integral then only has to absorb what is left (compass bias,
-  misalignment, mismatch), so it does not re-wind at every corner.
+* ψ0 = ψ_traj − arctan(c_⊥ / (U_ref − c_∥)) is the crab angle that cancels
+  the cross-line component c_⊥ of the water current while the speed loop
+  holds U_ref over ground (the water then passes at U_ref − c_∥ along the
+  line and c_⊥ across it); the current comes from
+  :class:`~zarco_runtime.control.water_observer.WaterObserver`.  The integral
+  then only has to absorb what is left (compass bias, misalignment), so it
+  does not re-wind at every corner.
+* The gains are scheduled on the speed through the water along the line
+  (U_ref − c_∥, capped by the observed water speed): that, not the speed over
+  ground, is what turns a heading error into cross-track motion.  At 0.5 m/s
+  with a 0.35 m/s current behind the boat it is 0.15 m/s.
 * The integral of d grows only while |d| is inside a window and the yaw
   moment is not saturated in the direction it would push (anti-windup).
 
 Speed: X_cmd = F_f(u_w,ref) + k_p (U_ref − U) + k_i ∫(U_ref − U) dt with the
 feedforward F_f from the nominal surge damping, U the ground speed along the
 line, and the integral frozen when the surge demand is cut by allocation.
+
+Thrusters that do not match (port and starboard giving (1 ± Δ) times the
+calibrated table) turn every yaw command into a surge force X = Δ N / b.  At
+low speed through the water that changes the speed, and when the boat crabs
+across a current it moves it across the line: each correction pushes the wrong
+way first.  The observer estimates Δ from the surge each yaw command makes,
+and the demands are passed through its inverse
+(:meth:`~zarco_runtime.control.water_observer.WaterObserver.command_for`),
+so that what the thrusters really give is what the controller asked for.
 """
 
 from __future__ import annotations
@@ -33,46 +51,16 @@ from zarco_core.vessel import VesselModel
 from zarco_runtime.control.allocation import Allocation
 from zarco_runtime.control.lqr import GainSchedule
 from zarco_runtime.control.settings import Control, xtrack_rate_tau_s
+from zarco_runtime.control.water_observer import WaterObserver
 from zarco_runtime.guidance.mission import Leg
 
 #: heading errors beyond this (rad) commit to the direction of the turn
 TURN_COMMIT_RAD = math.radians(150.0)
 
-
-class CurrentObserver:
-    """Water current (NED, m/s) from GPS ground velocity and a surge model.
-
-    Speed through the water u_w is integrated from the surge equation
-    (m − X_u') u_w' = X_u u_w + X_|u|u |u_w| u_w + X_act with the thrust the
-    allocator actually asked for; the current is the low-passed difference
-    between ground velocity and u_w along the heading, updated only on
-    straight, moving legs (sway is negligible there).
-    """
-
-    def __init__(self, vm: VesselModel, tau_s: float) -> None:
-        self.vm = vm
-        self.tau_s = tau_s
-        self.u_w = 0.0
-        self.cn = 0.0
-        self.ce = 0.0
-        self.samples = 0
-
-    def step(self, nav: NavState, x_act_n: float, dt: float) -> None:
-        vm = self.vm
-        acc = (vm.x_u * self.u_w + vm.x_uu * abs(self.u_w) * self.u_w + x_act_n) / (
-            vm.m_kg - vm.x_udot
-        )
-        self.u_w += acc * dt
-        if self.tau_s <= 0.0 or not nav.pos_valid or not nav.heading_valid:
-            return
-        if abs(nav.r_rps) > math.radians(3.0) or self.u_w < 0.15:
-            return
-        mn = nav.vn_mps - self.u_w * math.cos(nav.psi_rad)
-        me = nav.ve_mps - self.u_w * math.sin(nav.psi_rad)
-        a = min(1.0, dt / self.tau_s)
-        self.cn += a * (mn - self.cn)
-        self.ce += a * (me - self.ce)
-        self.samples += 1
+#: the observed water speed may exceed the scheduling speed by this much before it
+#: caps it (m/s): the observer's speed is noisy, the cap is for a boat that cannot
+#: reach its speed (full thrust against a current)
+_SCHED_MARGIN_MPS = 0.1
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,7 +86,7 @@ class LineController:
         self.dt = dt
         self.lag_s = lag_s
         self.schedule = GainSchedule(vm, ctl, lag_s, dt)
-        self.current = CurrentObserver(vm, ctl.current_tau_s)
+        self.water = WaterObserver(vm, lag_s, estimate_mismatch=ctl.mismatch_compensation)
         self.l_int = 0.0
         self.u_int = 0.0
         self.nt = 0.0
@@ -155,7 +143,7 @@ class LineController:
         # low-passed; cross-track error: GPS d, smoothed along that rate
         u_g = nav.vn_mps * ct + nav.ve_mps * st
         d_dot_gps = -nav.vn_mps * st + nav.ve_mps * ct
-        u_w = max(0.0, self.current.u_w)
+        u_w = max(0.0, self.water.u_w)
         d_dot_hdg = u_w * math.sin(wrap(nav.psi_rad - psi_t))
         tau_r, tau_d = self.tau_r, ctl.xtrack_tau_s
         if self._fresh_leg:
@@ -169,15 +157,20 @@ class LineController:
         d_dot = d_dot_hdg + self.rho
         d = self.d_hat
         # current: cross-line component → crab angle; along-line → water speed
-        c_perp = -self.current.cn * st + self.current.ce * ct
-        c_along = self.current.cn * ct + self.current.ce * st
+        cn, ce = (self.water.cn, self.water.ce) if ctl.current_feedforward else (0.0, 0.0)
+        c_perp = -cn * st + ce * ct
+        c_along = cn * ct + ce * st
         u_w_ref = max(0.05, u_ref - c_along)
-        crab = math.asin(max(-0.9, min(0.9, c_perp / u_w_ref)))
+        crab = math.atan2(c_perp, u_w_ref)
         psi0 = psi_t - crab
-        k_d, k_l, k_e, k_r, k_v, k_n = self.schedule.at(u_w_ref)
-        self._k = (k_d, k_l, k_e, k_r, k_v, k_n)
-        k_psi = max(1e-3, k_e - k_v * u_w_ref * math.cos(crab))
-        sigma = (k_d * d + k_l * self.l_int + k_v * d_dot) / k_psi
+        # speed through the water along the line: what the speed loop aims at,
+        # unless the boat is observed slower (thrust limit against a current)
+        u_s = max(0.05, min(u_w_ref, u_w * math.cos(crab) + _SCHED_MARGIN_MPS))
+        k_d, k_l, k_e, k_r, k_v, k_n, k_w = self.schedule.at(u_s)
+        self._k = (k_d, k_l, k_e, k_r, k_v, k_n, k_w)
+        w = self.water.sway_force if ctl.gust_feedforward else 0.0
+        k_psi = max(1e-3, k_e - k_v * u_s * math.cos(crab))
+        sigma = (k_d * d + k_l * self.l_int + k_v * d_dot + k_w * w) / k_psi
         lim = math.radians(ctl.max_intercept_deg)
         offset = max(-lim, min(lim, math.atan(sigma)))
         psi_ref = wrap(psi0 - offset)
@@ -192,7 +185,14 @@ class LineController:
         self._d = d
         self._u_err = u_ref - u_g
         self._sigma_sat = abs(math.atan(sigma)) >= lim
-        return Demand(x_cmd, n_cmd, psi_ref, psi0)
+        return self._demand(x_cmd, n_cmd, psi_ref, psi0)
+
+    def _demand(self, x_n: float, n_nm: float, psi_ref: float, psi0: float) -> Demand:
+        """The demand that makes the thrusters give ``x_n``, ``n_nm`` (their estimated
+        mismatch undone)."""
+        if self.ctl.mismatch_compensation:
+            x_n, n_nm = self.water.command_for(x_n, n_nm)
+        return Demand(x_n, n_nm, psi_ref, psi0)
 
     def hold(self, nav: NavState, psi_hold: float) -> Demand:
         """Slow down and keep heading ``psi_hold`` (track lost, or inside the hold
@@ -206,7 +206,7 @@ class LineController:
         x_cmd = -ctl.speed_kp * u_g
         n_cmd = (ctl.heading_kp * self.heading_error(psi_hold, nav.psi_rad)
                  - ctl.heading_kd * nav.r_rps)
-        return Demand(x_cmd, n_cmd, psi_hold, psi_hold)
+        return self._demand(x_cmd, n_cmd, psi_hold, psi_hold)
 
     def commit(self, nav: NavState, alloc: Allocation) -> None:
         """Update integrators and internal states with what was actually commanded."""
@@ -225,5 +225,6 @@ class LineController:
         if le and not ((alloc.sat_x > 0 and le > 0) or (alloc.sat_x < 0 and le < 0)):
             self.s_int += le * dt
         # moment actually produced, through the thruster lag
-        self.nt += (alloc.n_nm - self.nt) * min(1.0, dt / self.lag_s)
-        self.current.step(nav, alloc.x_n, dt)
+        n_real = self.water.actual(alloc.x_n, alloc.n_nm)[1]
+        self.nt += (n_real - self.nt) * min(1.0, dt / self.lag_s)
+        self.water.step(nav, alloc.x_n, alloc.n_nm, dt)

@@ -5,14 +5,21 @@ for u0 ≠ 0 and that gains k_y, k_l, k_ψ, k_r can be chosen to stabilise it;
 we choose them by discrete LQR on that model at each speed of a grid, with
 the thruster lag added, and interpolate at run time.
 
-State z = [d, l, e, r, v, Nt] (cross-track error m, its integral m s,
-heading error rad, yaw rate rad/s, sway m/s, applied yaw moment N m), input
-the commanded yaw moment N_cmd (N m):
+State z = [d, l, e, r, v, Nt, w] (cross-track error m, its integral m s,
+heading error rad, yaw rate rad/s, sway m/s, applied yaw moment N m, sway
+force of gusts and chop N), input the commanded yaw moment N_cmd (N m):
 
     d' = U e + v                 l' = d              e' = r
-    (m − Y_v') v' = Y_v v − m U r                      (from m(v' + u r) = Y)
+    (m − Y_v') v' = Y_v v − m U r + w                  (from m(v' + u r) = Y)
     (Iz − N_r') r' = N_r r + Nt
     Nt' = (N_cmd − Nt) / τ_thr
+    w' = −w / τ_w                                      (a Gauss–Markov force)
+
+w cannot be controlled, only countered: its gain is the feedforward that
+turns the bow against a gust before the gust has moved the boat, which is
+what holds the line at low speed through the water (at 0.15 m/s a 5 N gust
+needs some 20° of heading).  The observer estimates w
+(:class:`~zarco_runtime.control.water_observer.WaterObserver`).
 
 Discretised with a zero-order hold at the control period; the discrete
 algebraic Riccati equation is solved by the structured doubling algorithm
@@ -30,7 +37,9 @@ import numpy as np
 from zarco_core.vessel import VesselModel
 from zarco_runtime.control.settings import Control
 
-STATE = ("d", "l", "e", "r", "v", "nt")
+STATE = ("d", "l", "e", "r", "v", "nt", "w")
+#: correlation time of the sway gust force (s) the design assumes
+GUST_TAU_S = 2.0
 
 
 def expm(a: np.ndarray) -> np.ndarray:
@@ -79,11 +88,12 @@ def dare(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarr
     raise ArithmeticError("DARE did not converge")
 
 
-def steering_model(u_mps: float, vm: VesselModel, lag_s: float) -> tuple[np.ndarray, np.ndarray]:
+def steering_model(u_mps: float, vm: VesselModel, lag_s: float,
+                   gust_tau_s: float = GUST_TAU_S) -> tuple[np.ndarray, np.ndarray]:
     """Continuous-time (A, B) of the linearised steering model at speed ``u_mps``."""
     mv = vm.m_kg - vm.y_vdot
     jr = vm.iz_kgm2 - vm.n_rdot
-    a = np.zeros((6, 6))
+    a = np.zeros((7, 7))
     a[0, 2] = u_mps
     a[0, 4] = 1.0
     a[1, 0] = 1.0
@@ -92,18 +102,20 @@ def steering_model(u_mps: float, vm: VesselModel, lag_s: float) -> tuple[np.ndar
     a[3, 5] = 1.0 / jr
     a[4, 3] = -vm.m_kg * u_mps / mv
     a[4, 4] = vm.y_v / mv
+    a[4, 6] = 1.0 / mv
     a[5, 5] = -1.0 / lag_s
-    b = np.zeros((6, 1))
+    a[6, 6] = -1.0 / gust_tau_s
+    b = np.zeros((7, 1))
     b[5, 0] = 1.0 / lag_s
     return a, b
 
 
 @dataclass(frozen=True, slots=True)
 class SteeringGains:
-    """State-feedback gains N_cmd = −K z for z = [d, l, e, r, v, Nt]."""
+    """State-feedback gains N_cmd = −K z for z = [d, l, e, r, v, Nt, w]."""
 
     u_mps: float
-    k: tuple[float, float, float, float, float, float]
+    k: tuple[float, float, float, float, float, float, float]
 
 
 def design(u_mps: float, vm: VesselModel, ctl: Control, lag_s: float, dt: float) -> SteeringGains:
@@ -111,7 +123,7 @@ def design(u_mps: float, vm: VesselModel, ctl: Control, lag_s: float, dt: float)
     a, b = steering_model(u_mps, vm, lag_s)
     ad, bd = c2d(a, b, dt)
     scales = [ctl.lqr_d_m, ctl.lqr_int_ms, math.radians(ctl.lqr_psi_deg),
-              math.radians(ctl.lqr_r_dps), ctl.lqr_v_mps, 1e3]
+              math.radians(ctl.lqr_r_dps), ctl.lqr_v_mps, 1e3, 1e6]
     q = np.diag([1.0 / s**2 for s in scales])
     r = np.array([[1.0 / ctl.lqr_n_nm**2]])
     p = dare(ad, bd, q * dt, r * dt)
