@@ -29,7 +29,7 @@ from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import Fault, GuidanceStatus, NavState, ThrusterCommand
 from zarco_runtime.guidance.mission import Leg, build_legs
 from zarco_runtime.runtime import Runtime
-from zarco_tools.follow_report import follow_figures
+from zarco_tools.follow_report import finite_or_none, follow_figures
 from zarco_tools.scenario import Scenario
 from zarco_tools.sim_report import TrackLog, line_figures
 
@@ -190,7 +190,8 @@ def run_scenario(scn: Scenario, progress: ProgressFn | None = None) -> SimResult
         "last_thruster_command": counters.get("last_command"),
         **({"tracker": counters["tracker"]} if "tracker" in counters else {}),
     }
-    return SimResult(scn, legs, log, report, counters)
+    # JSON has no NaN: a figure that could not be computed is None
+    return SimResult(scn, legs, log, finite_or_none(report), counters)
 
 
 class StatusLine:
