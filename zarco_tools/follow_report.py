@@ -5,14 +5,16 @@
 * ``track_error_rms_m``: the tracker's Kalman filter vs truth;
 * ``course_error_rms_deg``: the RLS course vs the true course, on straight legs
   from 30 s after each turn;
-* ``turns``: per AUV manoeuvre (turns less than ``MERGE_S`` apart, such as a
-  lawnmower's two 90° turns at the end of a leg, count as one), its net course
+* ``turns``: per AUV manoeuvre (turns starting less than ``MERGE_S`` after the
+  previous one, such as a lawnmower's two 90° turns at the end of a leg, count
+  as one), its net course
   change ``angle_deg`` (positive to starboard) and ``kind`` (``turn`` up to 90°,
   ``uturn`` beyond), ``detect_s`` (from the start of the manoeuvre until the
   course error stays under 10°), ``recovery_s`` (from its start until the last
-  time, up to 60 s after its last turn, that the ASV–AUV horizontal distance
-  exceeds 3 m, after which it must stay within 3 m for 10 s; 0 if it never
-  exceeded 3 m) and ``distance_max_m`` (from its start to the next manoeuvre);
+  time, before the next manoeuvre and up to 60 s after its last turn, that the
+  ASV–AUV horizontal distance exceeds 3 m, after which it must stay within 3 m
+  for 10 s; 0 if it never exceeded 3 m; None if it did not recover) and
+  ``distance_max_m`` (from its start to the next manoeuvre);
 * ``distance_median_m``, ``distance_p95_m`` on straight legs from 60 s after
   each manoeuvre (and after the AUV starts moving), ``distance_max_m`` over the
   whole run;
@@ -40,7 +42,7 @@ DISTANCE_SETTLE_S = 60.0
 DETECT_DEG = 10.0
 RECOVER_M = 3.0
 RECOVER_HOLD_S = 10.0
-MERGE_S = 60.0
+MERGE_S = 30.0
 #: a manoeuvre turning through more than this (deg) is a U-turn
 UTURN_DEG = 91.0
 
@@ -171,16 +173,17 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
         sel = (t >= ts) & (t < nxt)
         tt_a, dd_a = t[sel], dist[sel]
         if tt_a.size:
-            # the last time the ASV was more than RECOVER_M away, up to
-            # DISTANCE_SETTLE_S after the manoeuvre's last turn; then it must stay
-            # within RECOVER_M for RECOVER_HOLD_S
+            # the last time the ASV was more than RECOVER_M away, before the next
+            # manoeuvre and up to DISTANCE_SETTLE_S after this one's last turn;
+            # from then it must stay within RECOVER_M for RECOVER_HOLD_S (which
+            # may run into the next manoeuvre)
             over = (dd_a > RECOVER_M) & (tt_a < te + DISTANCE_SETTLE_S)
             if not over.any():
                 recovery = 0.0
             else:
                 t_last = float(tt_a[over].max())
-                hold = (tt_a > t_last) & (tt_a <= t_last + RECOVER_HOLD_S)
-                if t_last + RECOVER_HOLD_S <= tt_a[-1] and np.all(dd_a[hold] <= RECOVER_M):
+                hold = (t > t_last) & (t <= t_last + RECOVER_HOLD_S)
+                if t_last + RECOVER_HOLD_S <= t[-1] and np.all(dist[hold] <= RECOVER_M):
                     recovery = t_last - ts
         dmax_turn = float(dd_a.max()) if dd_a.size else math.nan
         deg = math.degrees(ang)

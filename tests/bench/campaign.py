@@ -13,7 +13,7 @@ the worst is printed).  They span:
   beside the baseline with two beacons);
 * AUV speed 0.5–1.2 m/s, turn rate 6–15 °/s; lawnmower missions (legs of
   80–130 s, 15–40 m apart: a U-turn, or two 90° turns when the crossing takes
-  more than a minute) and random-leg missions (turns of 30–180°, a quarter of
+  30 s or more) and random-leg missions (turns of 30–180°, a quarter of
   them full reversals);
 * 0–20 % missed and 0–5 % false detections, 0.3–0.8 ms jitter;
 * current 0–0.3 m/s from any direction;

@@ -1,15 +1,41 @@
-"""Follow the AUV (paper VI, DESIGN.md §5): guidance from the AUV's estimated line.
+"""Follow the AUV (paper VI, DESIGN.md §5): guidance from the AUV's estimated track.
 
-The AUV's current straight line (x0, y0, vx, vy from the tracker's RLS) is
-turned into a virtual leg for the line-tracking controller — the steering law
-N_act = k_ψ(ψ_AUV − arctan(k_y d + k_l ∫d) − ψ) − k_r r is exactly the line
-law on that leg — plus the along-track term of the surge law:
+The target is the AUV's position now and its velocity, taken from
 
-    X_act = F_f(v_AUV) + k_v (v_AUV − v) + k_s (s_AUV − s) + k_i ∫(s_AUV − s) dt
+* the RLS line (x0, y0, vx, vy: the paper's estimate, smooth on straight
+  legs) when it is valid, the tracker has not just declared a turn, and the
+  line agrees with the Kalman filter;
+* otherwise the tracker's Kalman filter (kf_x, kf_y, kf_vx, kf_vy, extrapolated
+  to now), which follows a turn several seconds before a new line is fitted.
+
+The ASV steers along a virtual leg from its own position to an aim point on
+the AUV's track (line of sight): with (a, c) the ASV's offset from the
+target along and across the AUV's course (a > 0 ahead, c > 0 to starboard),
+the aim point lies ``lookahead_m`` ahead of the target when the ASV is
+behind it, and ``lookahead_m`` ahead of the ASV's projection on the track
+when it is ahead::
+
+    aim = p_AUV + (max(a, 0) + Δ) u        u the unit vector of the AUV's course
+
+so the ASV converges onto the AUV's track at atan(c/Δ) when alongside, and
+heads for the AUV itself when far behind (through turns, and while a new
+line is being fitted).  The ASV is on its own virtual leg (cross-track 0);
+the line controller's heading law steers its course over ground along it.
+
+Speed: the paper's surge law X = F_f(v_AUV) + k_v(v_AUV − v) + k_s(s_AUV − s)
++ k_i∫(s_AUV − s) dt, with the catch-up moved into the speed reference::
+
+    v_ref = clamp(v_AUV − a / τ_c, 0, v_max) / max(cos θ, 0.5)
+
+θ the angle between the leg and the AUV's course (the along-track part of the
+ASV's speed is what closes the gap).  The line controller's speed loop then
+adds the feedforward F_f(v_ref) that catching up needs; k_s and k_i (the
+``along_error_m`` passed to it) only trim what is left.
 
 When the track is lost (no fix for the configured time, a covariance too
 large, or the tracker says so) the boat slows down and holds the position
-where it lost it, and resumes following when the track is back.
+where it lost it, and resumes following when the track is back; above a
+still AUV it holds above it once the track has settled.
 """
 
 from __future__ import annotations
@@ -20,29 +46,40 @@ from dataclasses import dataclass
 from zarco_core.auv_messages import AuvTrack, TrackFlags
 from zarco_core.config import spec
 from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.tracking.follow import follow_geometry
 
-#: half-length of the virtual leg laid along the AUV's line (m)
-VIRTUAL_HALF_LENGTH_M = 10_000.0
+#: below this AUV speed (m/s) the course is undefined: hold above it
+V_MIN_MPS = 0.05
+#: before a line is fitted, the filter's speed (m/s) that counts as moving
+STILL_KF_MPS = 0.2
+#: length of the virtual leg laid past the aim point (m)
+LEG_PAST_AIM_M = 100.0
 
 
 @dataclass(slots=True)
 class FollowSettings:
     """``[follow]`` table of the runtime configuration."""
 
-    k_s: float = spec(20.0, "N/m", "surge force per metre the AUV is ahead along its line",
-                      min=0.0, max=1e4)
-    k_i: float = spec(1.0, "N/(m s)", "integral of the along-track lead", min=0.0, max=1e4)
+    k_s: float = spec(5.0, "N/m", "surge force per metre the AUV is ahead along its track "
+                      "(the speed reference already closes the gap)", min=0.0, max=1e4)
+    k_i: float = spec(0.5, "N/(m s)", "integral of the along-track lead", min=0.0, max=1e4)
     along_clamp_m: float = spec(8.0, "m", "along-track lead used at most by the surge law",
                                 min=0.1, max=1e4)
     max_speed_mps: float = spec(1.5, "m/s", "fastest speed reference while catching up",
                                 min=0.1, max=3.0)
+    lookahead_m: float = spec(5.0, "m", "line-of-sight look-ahead Δ: the ASV converges "
+                              "onto the AUV's track at atan(offset/Δ)", min=0.5, max=100.0)
+    catchup_tau_s: float = spec(5.0, "s", "time constant of closing an along-track gap "
+                                "(speed reference v_AUV + gap/τ)", min=0.5, max=600.0)
+    line_gate_m: float = spec(3.0, "m", "the RLS line is used only while its position "
+                              "agrees with the Kalman filter's within this plus 3σ",
+                              min=0.1, max=1000.0)
     lost_after_s: float = spec(20.0, "s", "no accepted fix for this long → track lost",
                                min=1.0, max=3600.0)
     max_pos_sigma_m: float = spec(15.0, "m", "track position σ above this → track lost",
                                   min=0.1, max=1e4)
     new_line_deg: float = spec(20.0, "deg", "course change that starts a new virtual leg "
-                               "(resets the cross-track integral)", min=1.0, max=180.0)
+                               "(the line controller resets its cross-track states)",
+                               min=1.0, max=180.0)
     hold_radius_m: float = spec(1.5, "m", "while holding, drift freely within this radius",
                                 min=0.5, max=1000.0)
     hold_above_sigma_m: float = spec(2.0, "m", "hold above a still AUV only once its "
@@ -53,7 +90,12 @@ class FollowSettings:
 
 @dataclass(slots=True)
 class FollowState:
-    """What the follow guidance decided at one instant."""
+    """What the follow guidance decided at one instant.
+
+    ``d_m``: the ASV's cross-track offset from the AUV's track (m, > 0 to
+    starboard); ``along_error_m``: how far the AUV is ahead of the ASV along
+    its course (m); ``target``: which estimate was followed (``line``, ``kf``).
+    """
 
     mode: str  # "follow", "hold" (track lost), "wait" (no track yet)
     leg: Leg | None
@@ -61,10 +103,43 @@ class FollowState:
     along_error_m: float
     speed_ref_mps: float
     reason: str = ""
+    target: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Target:
+    """The AUV now: position (NED m), velocity (m/s), and where it came from."""
+
+    x: float
+    y: float
+    vx: float
+    vy: float
+    source: str
+
+
+def target_now(track: AuvTrack, t: float, line_gate_m: float) -> Target:
+    """The AUV's position and velocity at runtime time ``t`` (module docstring:
+    the RLS line when valid, settled and consistent with the Kalman filter,
+    else the Kalman filter)."""
+    dt = t - track.t0
+    kx = track.kf_x_m + track.kf_vx_mps * dt
+    ky = track.kf_y_m + track.kf_vy_mps * dt
+    kf = Target(kx, ky, track.kf_vx_mps, track.kf_vy_mps, "kf")
+    fl = track.flags
+    if not fl & TrackFlags.LINE_VALID or fl & TrackFlags.TURNING:
+        return kf
+    lx = track.x0_m + track.vx_mps * dt
+    ly = track.y0_m + track.vy_mps * dt
+    if not (math.isfinite(lx) and math.isfinite(ly)):
+        return kf
+    sigma = track.kf_pos_sigma_m if math.isfinite(track.kf_pos_sigma_m) else 0.0
+    if math.hypot(lx - kx, ly - ky) > line_gate_m + 3.0 * sigma:
+        return kf
+    return Target(lx, ly, track.vx_mps, track.vy_mps, "line")
 
 
 class FollowGuidance:
-    """AuvTrack → virtual leg, cross-track and along-track errors."""
+    """AuvTrack → virtual leg, cross-track and along-track errors, speed reference."""
 
     def __init__(self, cfg: FollowSettings) -> None:
         self.cfg = cfg
@@ -72,6 +147,7 @@ class FollowGuidance:
         self._psi_leg: float | None = None
         self.hold: tuple[float, float] | None = None
         self.mode = "wait"
+        self.target: Target | None = None
 
     def _lost_reason(self, track: AuvTrack | None, t: float) -> str:
         if track is None:
@@ -83,44 +159,53 @@ class FollowGuidance:
             return f"no AUV fix for {age:.0f} s"
         if track.kf_pos_sigma_m > self.cfg.max_pos_sigma_m:
             return f"AUV position σ {track.kf_pos_sigma_m:.1f} m"
-        if not (math.isfinite(track.vx_mps) and math.isfinite(track.vy_mps)):
-            return "AUV line not estimated"
+        if not (math.isfinite(track.kf_vx_mps) and math.isfinite(track.kf_vy_mps)
+                and math.isfinite(track.kf_x_m) and math.isfinite(track.kf_y_m)):
+            return "AUV state not estimated"
         return ""
 
     def update(self, track: AuvTrack | None, t: float, x: float, y: float) -> FollowState:
         """Guidance at runtime time ``t`` for the ASV at (x, y) (NED, m)."""
+        cfg = self.cfg
         reason = self._lost_reason(track, t)
-        geo = None
-        if not reason and track is not None:
-            geo = follow_geometry(track.x0_m, track.y0_m, track.vx_mps, track.vy_mps, x, y,
-                                  t - track.t0)
-            if geo is None:
-                reason = ""
-        if reason or geo is None or track is None:
-            # AUV still but tracked: hold above it; track lost: hold where we are
-            settled = (track is not None and geo is None and not reason
-                       and track.kf_pos_sigma_m <= self.cfg.hold_above_sigma_m
+        if reason or track is None:
+            self.target = None
+            return self._hold(x, y, reason or "no AUV track yet")
+        tg = target_now(track, t, cfg.line_gate_m)
+        self.target = tg
+        v = math.hypot(tg.vx, tg.vy)
+        # moving: by the line's speed once a line is fitted (the filter's velocity
+        # is noisy until then), else by the filter's with a margin
+        if track.flags & TrackFlags.LINE_VALID:
+            moving = math.hypot(track.vx_mps, track.vy_mps) >= V_MIN_MPS
+        else:
+            moving = v >= STILL_KF_MPS
+        if not (moving and v >= V_MIN_MPS):
+            # AUV still: hold above it once its track has settled, else where we are
+            settled = (track.kf_pos_sigma_m <= cfg.hold_above_sigma_m
                        and bool(track.flags & TrackFlags.LINE_VALID))
-            above = (track.kf_x_m, track.kf_y_m) if settled and track is not None else None
-            return self._hold(x, y, reason or "AUV (nearly) still", above)
+            return self._hold(x, y, "AUV (nearly) still", (tg.x, tg.y) if settled else None)
         self.hold = None
         self.mode = "follow"
-        psi = geo.psi_auv_rad
+        ux, uy = tg.vx / v, tg.vy / v
+        ex, ey = x - tg.x, y - tg.y
+        a = ex * ux + ey * uy  # > 0: the ASV is ahead of the AUV
+        c = -ex * uy + ey * ux  # > 0: the ASV is to starboard of its track
+        ahead = max(a, 0.0) + cfg.lookahead_m
+        ax, ay = tg.x + ahead * ux, tg.y + ahead * uy
+        psi = math.atan2(ay - y, ax - x)
         if (self._psi_leg is None
                 or abs(math.remainder(psi - self._psi_leg, math.tau))
-                > math.radians(self.cfg.new_line_deg)):
+                > math.radians(cfg.new_line_deg)):
             self.leg_id += 1
             self._psi_leg = psi
-        c, s = math.cos(psi), math.sin(psi)
-        # the AUV's position now, on its line
-        ax = track.x0_m + track.vx_mps * (t - track.t0)
-        ay = track.y0_m + track.vy_mps * (t - track.t0)
-        half = VIRTUAL_HALF_LENGTH_M
-        leg = Leg(self.leg_id, ax - half * c, ay - half * s, ax + half * c, ay + half * s,
-                  geo.v_auv_mps)
-        lead = geo.along_error_m
-        return FollowState("follow", leg, geo.d_m, lead,
-                           min(self.cfg.max_speed_mps, geo.v_auv_mps))
+        theta = math.remainder(psi - math.atan2(uy, ux), math.tau)
+        v_ref = max(0.0, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
+        v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
+        cp, sp = math.cos(psi), math.sin(psi)
+        # from the ASV through the aim point, and on past it
+        leg = Leg(self.leg_id, x, y, ax + LEG_PAST_AIM_M * cp, ay + LEG_PAST_AIM_M * sp, v_ref)
+        return FollowState("follow", leg, c, -a, v_ref, "", tg.source)
 
     def _hold(self, x: float, y: float, reason: str,
               above: tuple[float, float] | None = None) -> FollowState:
