@@ -63,11 +63,13 @@ from zarco_runtime.tracking.fix import (
     circle_fix,
     cycle_ranges,
     horizontal_radius,
+    ls_chi2,
+    ls_fix,
     motion_bias,
     range_jacobian,
     range_variances,
 )
-from zarco_runtime.tracking.kalman import CvKalman
+from zarco_runtime.tracking.kalman import CvKalman, ImmCv
 from zarco_runtime.tracking.params import Network, TrackerParams
 from zarco_runtime.tracking.rls import LineRls
 
@@ -106,7 +108,13 @@ class AuvTracker:
         self.cycles = CycleAssembler(self.net, params.auv_depth_m, params.max_range_m,
                                      params.sequence, self._predict_range, 4.0,
                                      params.closing_margin_m)
-        self.kf = CvKalman(params.accel_psd)
+        self.kf: CvKalman | ImmCv
+        if params.motion_model == "imm":
+            self.kf = ImmCv((params.accel_psd, params.maneuver_accel_psd),
+                            (params.straight_sojourn_s, params.maneuver_sojourn_s), (0.5, 0.5))
+        else:
+            self.kf = CvKalman(params.accel_psd)
+        self._maneuvering = False
         self.rls = LineRls(params.rls_forgetting, params.turn_cusum_drift,
                            params.turn_cusum_threshold, params.turn_holdoff_s)
         self.dropped: Counter[str] = Counter()
@@ -136,6 +144,8 @@ class AuvTracker:
         self._last_range_only = False
         self._buoy_fault = False
         self._var = range_variances  # local alias for the hot path
+        #: newest range to each beacon: (emission UTC s, range m, variance m²)
+        self._ranges: dict[int, tuple[float, float, float]] = {}
 
     # ------------------------------------------------------------ public API
 
@@ -229,6 +239,7 @@ class AuvTracker:
             self._offset_fixed = False
             rs.clear()
             self.cycles.reset(clock=True)
+            self._ranges.clear()
             self.kf.reset()
             self.rls.initialised = False
             self._init_buf.clear()
@@ -335,29 +346,36 @@ class AuvTracker:
             fx, fy = cf.x1, cf.y1
         kf.predict(t_em)
         ambiguous = det > 0.0 and max(m1, m2) <= p.gate_chi2 * det
-        if ambiguous:
-            # both solutions are plausible (near the baseline): do not pick one,
-            # linearise the two ranges at the prediction (an EKF update)
+        if ambiguous or cf.gap_m > 0.0:
+            # both solutions are plausible (near the baseline), or the circles
+            # miss each other (the fix is only the point between them): do not
+            # pick one, linearise the two ranges at the prediction (an EKF update)
             lx, ly = px, py
         else:
             lx, ly = fx, fy
         ji = range_jacobian(net, idx, lx, ly, depth)
         jl = range_jacobian(net, net.listener, lx, ly, depth)
         rows = [ji, jl]
-        if lx == fx and ly == fy:
-            z = [ji[0] * fx + ji[1] * fy, jl[0] * fx + jl[1] * fy]
-        else:
-            z = [r_i - self._range3(idx, lx, ly) + ji[0] * lx + ji[1] * ly,
-                 r_l - self._range3(net.listener, lx, ly) + jl[0] * lx + jl[1] * ly]
+        # the ranges linearised at (lx, ly): r ≈ r̂(l) + J (p − l)
+        z = [r_i - self._range3(idx, lx, ly) + ji[0] * lx + ji[1] * ly,
+             r_l - self._range3(net.listener, lx, ly) + jl[0] * lx + jl[1] * ly]
         lat = self._lateral(fx - px, fy - py, pxx, pxy, pyy, ji, jl, var_i, var_l)
         ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2,
                                 p.soft_gate_chi2)
         if lat is not None and self._maneuver(lat) and not ok:
             ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2,
                                 p.soft_gate_chi2)
-        self._emit_fix(cyc, t_em, cf, fx, fy, r_i, r_l, bias, ok, out)
+        mx, my = (cf.x2, cf.y2) if (fx, fy) == (cf.x1, cf.y1) else (cf.x1, cf.y1)
+        ls = self._multi_fix(idx, t_em, r_i, r_l, var_i, var_l, fx, fy)
+        fix = AuvFix(cyc.t, t_em, cyc.beacon, ls[0], ls[1], mx, my, r_i, r_l, bias, ok,
+                     False, ls[2], ls[3], ls[4])
+        self.last_fix = fix
+        out.append(fix)
         self._last_range_only = False
         if ok:
+            # only ranges the filter accepted take part in later fixes
+            self._ranges[idx] = (t_em, r_i, var_i)
+            self._ranges[net.listener] = (t_em, r_l, var_l)
             self._accepted(t_em, cyc.t, fx, fy, e, out)
             return
         self.dropped["innovation"] += 1
@@ -480,6 +498,8 @@ class AuvTracker:
             cx, cy = net.north[lst] + dx / hd * rho, net.east[lst] + dy / hd * rho
         else:
             cx, cy = px, py
+        if ok:
+            self._ranges[lst] = (t_em, r, var_i)
         fix = AuvFix(cyc.t, t_em, cyc.beacon, cx, cy, cx, cy, r, r, bias, ok, True)
         self.last_fix = fix
         out.append(fix)
@@ -488,6 +508,46 @@ class AuvTracker:
             return
         self._last_range_only = True
         self._accepted(t_em, cyc.t, cx, cy, var_i, out)
+
+    def _multi_fix(self, idx: int, t_em: float, r_i: float, r_l: float, var_i: float,
+                   var_l: float, fx: float, fy: float
+                   ) -> tuple[float, float, float, float, float]:
+        """The cycle's fix with every beacon heard within ``ls_window_s``: each
+        older range brought to ``t_em`` along the filter's velocity (its
+        variance grown by the velocity's uncertainty and the manoeuvring
+        model's acceleration over the interval), then the joint least-squares
+        position from the chosen two-circle solution (fx, fy).  Returns
+        (x, y, Cxx, Cxy, Cyy); the two-circle solution (and its covariance) when
+        no other beacon was heard or the ranges do not agree on one position
+        (χ² of the residuals beyond ``gate_chi2`` + 2 per extra range).  Only
+        ranges of accepted cycles are remembered for later fixes."""
+        net = self.net
+        p = self.p
+        lst = net.listener
+        kf = self.kf
+        depth = self.depth
+        ranges = [(idx, r_i, var_i), (lst, r_l, var_l)]
+        if kf.initialised:
+            vx, vy = kf.x[2], kf.x[3]
+            P = kf.P
+            for k, (tk, rk, vk) in self._ranges.items():
+                dt = t_em - tk
+                if k in (idx, lst) or not 0.0 <= dt <= p.ls_window_s:
+                    continue
+                jx, jy = range_jacobian(net, k, fx, fy, depth)
+                pv = jx * jx * P[2][2] + 2.0 * jx * jy * P[2][3] + jy * jy * P[3][3]
+                grow = dt * dt * pv + p.maneuver_accel_psd * dt ** 3 / 3.0
+                ranges.append((k, rk + (jx * vx + jy * vy) * dt, vk + grow))
+        two = ls_fix(net, ranges[:2], depth, fx, fy, 1)
+        c2 = (two[2], two[3], two[4]) if two is not None else (math.nan,) * 3
+        if len(ranges) > 2:
+            # the joint solution, unless the ranges disagree (a false or late
+            # detection in this cycle): then the cycle's own pair
+            sol = ls_fix(net, ranges, depth, fx, fy)
+            if sol is not None and ls_chi2(net, ranges, depth, sol[0], sol[1]) <= (
+                    p.gate_chi2 + 2.0 * (len(ranges) - 2)):
+                return sol
+        return fx, fy, *c2
 
     def _lateral(self, ex: float, ey: float, pxx: float, pxy: float, pyy: float,
                  ji: tuple[float, float], jl: tuple[float, float], var_i: float,
@@ -532,13 +592,7 @@ class AuvTracker:
         """Add the turn covariance to the filter and (optionally) mark the line
         for a restart."""
         p = self.p
-        P = self.kf.P
-        dv = p.turn_vel_sigma_mps ** 2
-        dp = p.turn_pos_sigma_m ** 2
-        P[0][0] += dp
-        P[1][1] += dp
-        P[2][2] += dv
-        P[3][3] += dv
+        self.kf.inflate(p.turn_pos_sigma_m ** 2, p.turn_vel_sigma_mps ** 2)
         if restart_line:
             self._line_restart = True
 
@@ -646,8 +700,11 @@ class AuvTracker:
             ji = range_jacobian(net, e.idx, q[0], q[1], self.depth)
             jl = range_jacobian(net, net.listener, q[0], q[1], self.depth)
             var_i, var_l = self._var(net, e.idx, p.timing_sigma_s, p.range_sigma_m)
-            kf.update([ji, jl], [ji[0] * q[0] + ji[1] * q[1], jl[0] * q[0] + jl[1] * q[1]],
-                      [var_i, var_l])
+            kf.update([ji, jl], [e.r_i - self._range3(e.idx, q[0], q[1]) + ji[0] * q[0]
+                                 + ji[1] * q[1],
+                                 e.r_l - self._range3(net.listener, q[0], q[1]) + jl[0] * q[0]
+                                 + jl[1] * q[1]], [var_i, var_l])
+        self._maneuvering = False
         if self._ever_init:
             self._reacquired_utc = last.t
         self._ever_init = True
@@ -684,16 +741,40 @@ class AuvTracker:
                 # a turn: open up the filter (it follows the new course faster)
                 # and restart the line from the filter with that covariance
                 self._inflate()
-            if self._line_restart:
+            # the IMM's manoeuvring model: restart the line from the filter at
+            # every update while it dominates, and once more when it ends
+            state = self._imm_state()
+            if state or self._line_restart:
+                if state == "enter" or not state:
+                    self.turns += 1
                 self._line_restart = False
-                self.turns += 1
                 self._turn_utc = t_em
+                P = kf.P
                 rls.reset(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], 0.5 * (P[0][0] + P[1][1]),
                           0.5 * (P[2][2] + P[3][3]), 0.5 * (P[0][2] + P[1][3]),
                           max(kf.pos_sigma(), floor))
         track = self._build(t)
         self.last_track = track
         out.append(track)
+
+    def _imm_state(self) -> str:
+        """The IMM's manoeuvre state after an update: ``enter`` (the manoeuvring
+        model's probability rose to ``maneuver_on``), ``during``, ``exit`` (it
+        fell to ``maneuver_off``), or "" (straight, or a single-model filter)."""
+        kf = self.kf
+        if not isinstance(kf, ImmCv):
+            return ""
+        mu = kf.mu[1]
+        p = self.p
+        if not self._maneuvering:
+            if mu >= p.maneuver_on:
+                self._maneuvering = True
+                return "enter"
+            return ""
+        if mu <= p.maneuver_off:
+            self._maneuvering = False
+            return "exit"
+        return "during"
 
     def _flags(self, age: float) -> int:
         p = self.p
