@@ -18,10 +18,11 @@
 * ``distance_median_m``, ``distance_p95_m`` on straight legs from 60 s after
   each manoeuvre (and after the AUV starts moving), ``distance_max_m`` over the
   whole run;
-* ``lost_max_s``: the longest time, once the AUV moves, that the ASV went without
-  a usable track: no accepted update (``fix_gap_max_s``), or the track declared
-  lost; ``hold_max_s``: the longest time the follow guidance held instead of
-  following the AUV's line (track lost, or the AUV seen as still).
+* ``lost_max_s``: the longest time, once the AUV moves, that the ASV was not
+  following it (the follow guidance holding: track lost, or the AUV taken for
+  still) while the AUV was heard (detected interrogations at most 2.5 s apart);
+  ``hold_max_s`` the same whether heard or not, ``fix_gap_max_s`` the longest
+  time without an accepted update.
 
 Every figure that cannot be computed (no turn recovered, no straight leg) is
 None, never NaN: the report is written as JSON.
@@ -45,6 +46,9 @@ RECOVER_HOLD_S = 10.0
 MERGE_S = 30.0
 #: a manoeuvre turning through more than this (deg) is a U-turn
 UTURN_DEG = 91.0
+#: the AUV counts as heard while its detected interrogations are no further
+#: apart than this (s; it pings every 1–2 s, so a longer silence is missed pings)
+HEARD_GAP_S = 2.5
 
 
 def finite_or_none(v: Any) -> Any:
@@ -108,6 +112,20 @@ def _longest(t: np.ndarray, bad: np.ndarray) -> float:
             start = None
     if start is not None and t.size:
         best = max(best, float(t[-1] - start))
+    return best
+
+
+def _longest_counted(t: np.ndarray, bad: np.ndarray, count: np.ndarray) -> float:
+    """Longest contiguous stretch where ``bad`` holds, measured only over the
+    samples where ``count`` holds (s)."""
+    best = run = 0.0
+    for i in range(1, t.size):
+        if bad[i] and bad[i - 1]:
+            if count[i]:
+                run += float(t[i] - t[i - 1])
+            best = max(best, run)
+        elif not bad[i]:
+            run = 0.0
     return best
 
 
@@ -202,13 +220,19 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
         gap = float(np.max(np.diff(pts))) if pts.size > 1 else 0.0
     else:
         gap = max(0.0, t_end - move_start)
-    tk = [(m.t, bool(m.lost)) for m in tracks if m.t >= move_start]
-    lost_flag = (_longest(np.array([a for a, _ in tk]), np.array([b for _, b in tk]))
-                 if tk else 0.0)
-    # not following the AUV's line (holding: track lost, or the AUV seen as still)
+    # not following the AUV (holding: the track lost, or the AUV taken for still)
+    # once it moves, counting only the time the listener hears its interrogations
     legs = np.asarray(log.leg[: t.size])
     after_move = t >= move_start
     hold = _longest(t[after_move], legs[after_move] < 0) if after_move.any() else 0.0
+    heard_i = np.array(sorted(d.t_s for d in acoustics.detections
+                              if d.kind == "I" and d.label != "false"))
+    if heard_i.size > 1 and t.size:
+        k = np.clip(np.searchsorted(heard_i, t), 1, heard_i.size - 1)
+        heard = (heard_i[k] - heard_i[k - 1]) <= HEARD_GAP_S
+    else:
+        heard = np.zeros(t.size, dtype=bool)
+    lost = _longest_counted(t[after_move], (legs < 0)[after_move], heard[after_move])
 
     def rms(v: list[float]) -> float:
         return float(np.sqrt(np.mean(np.square(v)))) if v else math.nan
@@ -226,5 +250,5 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
         "track_lost_events": sum(1 for tr in tracks if tr.lost),
         "fix_gap_max_s": round(gap, 2),
         "hold_max_s": round(hold, 2),
-        "lost_max_s": round(max(gap, lost_flag), 2),
+        "lost_max_s": round(lost, 2),
     })

@@ -1,12 +1,14 @@
 """Follow the AUV (paper VI, DESIGN.md §5): guidance from the AUV's estimated track.
 
-The target is the AUV's position now and its velocity, taken from
+The target is the AUV's position now: the tracker's filter position (which
+follows a turn within a fix or two) carried forward to now with a velocity
+taken from
 
-* the RLS line (x0, y0, vx, vy: the paper's estimate, smooth on straight
-  legs) when it is valid, the tracker has not just declared a turn, and the
-  line agrees with the Kalman filter;
-* otherwise the tracker's Kalman filter (kf_x, kf_y, kf_vx, kf_vy, extrapolated
-  to now), which follows a turn several seconds before a new line is fitted.
+* the RLS line (vx, vy: the paper's estimate, smooth on straight legs) when it
+  is valid, the tracker has not just declared a turn, and the line agrees with
+  the filter (position and course);
+* otherwise the filter's own velocity, which follows a turn several seconds
+  before a new line is fitted.
 
 The ASV steers along a virtual leg from its own position to an aim point on
 the AUV's track (line of sight): with (a, c) the ASV's offset from the
@@ -49,8 +51,10 @@ from zarco_runtime.guidance.mission import Leg
 
 #: below this AUV speed (m/s) the course is undefined: hold above it
 V_MIN_MPS = 0.05
-#: before a line is fitted, the filter's speed (m/s) that counts as moving
-STILL_KF_MPS = 0.2
+#: the look-ahead shrinks by half the along-track lag down to this fraction of it
+MIN_LOOKAHEAD_FRACTION = 0.3
+#: the AUV moves when its line's speed exceeds this many standard deviations
+MOVING_SIGMAS = 1.5
 #: length of the virtual leg laid past the aim point (m)
 LEG_PAST_AIM_M = 100.0
 
@@ -68,11 +72,16 @@ class FollowSettings:
                                 min=0.1, max=3.0)
     lookahead_m: float = spec(5.0, "m", "line-of-sight look-ahead Δ: the ASV converges "
                               "onto the AUV's track at atan(offset/Δ)", min=0.5, max=100.0)
+    max_turn_rate_dps: float = spec(25.0, "deg/s", "the virtual leg's course turns no "
+                                    "faster than this (the estimate's jitter is not "
+                                    "steered)", min=1.0, max=360.0)
     catchup_tau_s: float = spec(5.0, "s", "time constant of closing an along-track gap "
                                 "(speed reference v_AUV + gap/τ)", min=0.5, max=600.0)
     line_gate_m: float = spec(3.0, "m", "the RLS line is used only while its position "
                               "agrees with the Kalman filter's within this plus 3σ",
                               min=0.1, max=1000.0)
+    line_course_gate_deg: float = spec(20.0, "deg", "… and while its course agrees with the "
+                                       "Kalman filter's within this", min=1.0, max=180.0)
     lost_after_s: float = spec(20.0, "s", "no accepted fix for this long → track lost",
                                min=1.0, max=3600.0)
     max_pos_sigma_m: float = spec(15.0, "m", "track position σ above this → track lost",
@@ -84,6 +93,9 @@ class FollowSettings:
                                 min=0.5, max=1000.0)
     hold_above_sigma_m: float = spec(2.0, "m", "hold above a still AUV only once its "
                                      "position σ is below this", min=0.1, max=100.0)
+    still_speed_mps: float = spec(0.3, "m/s", "a still AUV starts moving when its speed "
+                                  "exceeds this (and 1.5σ); a moving one stops when its "
+                                  "speed plus 2σ is below it", min=0.01, max=2.0)
     hold_speed_mps: float = spec(0.5, "m/s", "speed back to the hold point", min=0.05,
                                  max=2.0)
 
@@ -117,14 +129,16 @@ class Target:
     source: str
 
 
-def target_now(track: AuvTrack, t: float, line_gate_m: float) -> Target:
-    """The AUV's position and velocity at runtime time ``t`` (module docstring:
-    the RLS line when valid, settled and consistent with the Kalman filter,
-    else the Kalman filter)."""
+def target_now(track: AuvTrack, t: float, line_gate_m: float,
+               line_course_gate_rad: float = math.inf) -> Target:
+    """The AUV's position and velocity at runtime time ``t``: the Kalman
+    filter's position, carried to ``t`` with the RLS line's velocity while the
+    line is valid, settled (not just restarted by a turn) and consistent with
+    the filter (positions within ``line_gate_m`` + 3σ, courses within
+    ``line_course_gate_rad``), else with the filter's own velocity."""
     dt = t - track.t0
-    kx = track.kf_x_m + track.kf_vx_mps * dt
-    ky = track.kf_y_m + track.kf_vy_mps * dt
-    kf = Target(kx, ky, track.kf_vx_mps, track.kf_vy_mps, "kf")
+    kvx, kvy = track.kf_vx_mps, track.kf_vy_mps
+    kf = Target(track.kf_x_m + kvx * dt, track.kf_y_m + kvy * dt, kvx, kvy, "kf")
     fl = track.flags
     if not fl & TrackFlags.LINE_VALID or fl & TrackFlags.TURNING:
         return kf
@@ -133,9 +147,14 @@ def target_now(track: AuvTrack, t: float, line_gate_m: float) -> Target:
     if not (math.isfinite(lx) and math.isfinite(ly)):
         return kf
     sigma = track.kf_pos_sigma_m if math.isfinite(track.kf_pos_sigma_m) else 0.0
-    if math.hypot(lx - kx, ly - ky) > line_gate_m + 3.0 * sigma:
+    if math.hypot(lx - kf.x, ly - kf.y) > line_gate_m + 3.0 * sigma:
         return kf
-    return Target(lx, ly, track.vx_mps, track.vy_mps, "line")
+    if math.hypot(kvx, kvy) > V_MIN_MPS and abs(math.remainder(
+            math.atan2(kvy, kvx) - math.atan2(track.vy_mps, track.vx_mps), math.tau)
+            ) > line_course_gate_rad:
+        return kf
+    return Target(track.kf_x_m + track.vx_mps * dt, track.kf_y_m + track.vy_mps * dt,
+                  track.vx_mps, track.vy_mps, "line")
 
 
 class FollowGuidance:
@@ -148,6 +167,10 @@ class FollowGuidance:
         self.hold: tuple[float, float] | None = None
         self.mode = "wait"
         self.target: Target | None = None
+        #: whether the AUV is taken to be moving (hysteresis, see update)
+        self.moving = False
+        self._psi_ref: float | None = None
+        self._t_ref: float | None = None
 
     def _lost_reason(self, track: AuvTrack | None, t: float) -> str:
         if track is None:
@@ -171,16 +194,21 @@ class FollowGuidance:
         if reason or track is None:
             self.target = None
             return self._hold(x, y, reason or "no AUV track yet")
-        tg = target_now(track, t, cfg.line_gate_m)
+        tg = target_now(track, t, cfg.line_gate_m, math.radians(cfg.line_course_gate_deg))
         self.target = tg
         v = math.hypot(tg.vx, tg.vy)
-        # moving: by the line's speed once a line is fitted (the filter's velocity
-        # is noisy until then), else by the filter's with a margin
-        if track.flags & TrackFlags.LINE_VALID:
-            moving = math.hypot(track.vx_mps, track.vy_mps) >= V_MIN_MPS
-        else:
-            moving = v >= STILL_KF_MPS
-        if not (moving and v >= V_MIN_MPS):
+        # moving: the line's speed (re-seeded from the filter at every manoeuvre,
+        # a start included) above ``still_speed_mps`` and its uncertainty; still
+        # again only when the speed is surely small (a turn's uncertainty is
+        # not a stop)
+        cov = track.cov
+        sv = math.sqrt(max(0.5 * (cov[10] + cov[15]), 0.0)) if len(cov) == 16 else 0.0
+        v_line = math.hypot(track.vx_mps, track.vy_mps)
+        if not self.moving:
+            self.moving = v_line >= max(cfg.still_speed_mps, MOVING_SIGMAS * sv)
+        elif v_line + 2.0 * sv < cfg.still_speed_mps:
+            self.moving = False
+        if not (self.moving and v >= V_MIN_MPS):
             # AUV still: hold above it once its track has settled, else where we are
             settled = (track.kf_pos_sigma_m <= cfg.hold_above_sigma_m
                        and bool(track.flags & TrackFlags.LINE_VALID))
@@ -191,9 +219,18 @@ class FollowGuidance:
         ex, ey = x - tg.x, y - tg.y
         a = ex * ux + ey * uy  # > 0: the ASV is ahead of the AUV
         c = -ex * uy + ey * ux  # > 0: the ASV is to starboard of its track
-        ahead = max(a, 0.0) + cfg.lookahead_m
+        # far behind, aim nearer the AUV itself: its course (the noisiest part of
+        # the estimate) then swings the aim less
+        look = max(cfg.lookahead_m - 0.5 * max(-a, 0.0), MIN_LOOKAHEAD_FRACTION * cfg.lookahead_m)
+        ahead = max(a, 0.0) + look
         ax, ay = tg.x + ahead * ux, tg.y + ahead * uy
         psi = math.atan2(ay - y, ax - x)
+        # the leg turns no faster than the boat can
+        if self._psi_ref is not None and self._t_ref is not None and t > self._t_ref:
+            step = math.radians(cfg.max_turn_rate_dps) * (t - self._t_ref)
+            dpsi = math.remainder(psi - self._psi_ref, math.tau)
+            psi = self._psi_ref + max(-step, min(step, dpsi))
+        self._psi_ref, self._t_ref = psi, t
         if (self._psi_leg is None
                 or abs(math.remainder(psi - self._psi_leg, math.tau))
                 > math.radians(cfg.new_line_deg)):
@@ -209,6 +246,7 @@ class FollowGuidance:
 
     def _hold(self, x: float, y: float, reason: str,
               above: tuple[float, float] | None = None) -> FollowState:
+        self._psi_ref = None
         if above is not None and all(math.isfinite(v) for v in above):
             self.hold = above
         elif self.hold is None:

@@ -60,19 +60,25 @@ class TrackerParams:
     accel_psd: float = spec(0.004, "m²/s³", "constant-velocity model: white-acceleration "
                             "spectral density q (the quiet model of the IMM)",
                             min=1e-8, max=100.0)
-    motion_model: str = spec("imm", "", "the AUV filter: 'imm' (a quiet and a manoeuvring "
-                             "constant-velocity model side by side) or 'cv' (one model)",
-                             choices=list(MOTION_MODELS))
+    motion_model: str = spec("imm", "", "the AUV filter: 'imm' (models side by side: "
+                             "straight, manoeuvring, coordinated turn) or 'cv' (one "
+                             "constant-velocity model)", choices=list(MOTION_MODELS))
     maneuver_accel_psd: float = spec(0.2, "m²/s³", "IMM: white-acceleration density of the "
-                                     "manoeuvring model", min=1e-6, max=100.0)
+                                     "manoeuvring constant-velocity model",
+                                     min=1e-6, max=100.0)
+    turn_accel_psd: float = spec(0.01, "m²/s³", "IMM: white-acceleration density of the "
+                                 "coordinated-turn model", min=1e-8, max=100.0)
+    turn_rate_psd: float = spec(0.003, "rad²/s³", "IMM: turn-rate random walk of the "
+                                "coordinated-turn model", min=1e-8, max=10.0)
     straight_sojourn_s: float = spec(60.0, "s", "IMM: mean time the AUV keeps a straight "
                                      "line (sets the switching probability)",
                                      min=1.0, max=1e5)
-    maneuver_sojourn_s: float = spec(10.0, "s", "IMM: mean duration of a manoeuvre",
+    maneuver_sojourn_s: float = spec(10.0, "s", "IMM: mean time in the manoeuvring model",
                                      min=0.5, max=1e4)
-    maneuver_on: float = spec(0.6, "", "IMM: manoeuvring-model probability that declares a "
-                              "turn (the line restarts from the filter while it lasts)",
-                              min=0.01, max=0.99)
+    turn_sojourn_s: float = spec(20.0, "s", "IMM: mean duration of a turn", min=0.5, max=1e4)
+    maneuver_on: float = spec(0.6, "", "IMM: probability of not flying straight that "
+                              "declares a turn (the line restarts from the filter while it "
+                              "lasts)", min=0.01, max=0.99)
     maneuver_off: float = spec(0.3, "", "IMM: probability under which the turn is over "
                                "(the line restarts once more and is fitted on)",
                                min=0.01, max=0.99)

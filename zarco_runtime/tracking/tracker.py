@@ -69,7 +69,8 @@ from zarco_runtime.tracking.fix import (
     range_jacobian,
     range_variances,
 )
-from zarco_runtime.tracking.kalman import CvKalman, ImmCv
+from zarco_runtime.tracking.imm import Imm
+from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.params import Network, TrackerParams
 from zarco_runtime.tracking.rls import LineRls
 
@@ -108,10 +109,13 @@ class AuvTracker:
         self.cycles = CycleAssembler(self.net, params.auv_depth_m, params.max_range_m,
                                      params.sequence, self._predict_range, 4.0,
                                      params.closing_margin_m)
-        self.kf: CvKalman | ImmCv
+        self.kf: CvKalman | Imm
         if params.motion_model == "imm":
-            self.kf = ImmCv((params.accel_psd, params.maneuver_accel_psd),
-                            (params.straight_sojourn_s, params.maneuver_sojourn_s), (0.5, 0.5))
+            self.kf = Imm([("cv", params.accel_psd, 0.0),
+                           ("cv", params.maneuver_accel_psd, 0.0),
+                           ("ct", params.turn_accel_psd, params.turn_rate_psd)],
+                          (params.straight_sojourn_s, params.maneuver_sojourn_s,
+                           params.turn_sojourn_s), (0.5, 0.25, 0.25))
         else:
             self.kf = CvKalman(params.accel_psd)
         self._maneuvering = False
@@ -284,13 +288,15 @@ class AuvTracker:
         p = self.p
         rg = cycle_ranges(cyc, net)
         r_i, r_l = rg.r_i, rg.r_l
+        if math.isnan(r_l):  # no reply heard: the range to the beacon only
+            r_l = r_i
         if not (0.0 <= r_i <= p.max_range_m and 0.0 <= r_l <= p.max_range_m + net.d[rg.index]):
             self.dropped["impossible_timing"] += 1
             return
         idx = rg.index
         kf = self.kf
-        if idx == net.listener:
-            self._range_only(cyc, r_i, out)
+        if idx == net.listener or math.isnan(cyc.t_r):
+            self._range_only(cyc, idx, r_i, out)
             return
         depth = self.depth
         cf = circle_fix(net, idx, r_i, r_l, depth)
@@ -378,6 +384,12 @@ class AuvTracker:
             self._ranges[net.listener] = (t_em, r_l, var_l)
             self._accepted(t_em, cyc.t, fx, fy, e, out)
             return
+        # the reply may be the bad part (a multipath or false one paired when the
+        # direct one was missed): the range to the beacon comes from the two
+        # interrogations alone
+        if self._range_only(cyc, idx, rg.r_i, out, fallback=True):
+            self.dropped["reply_refused"] += 1
+            return
         self.dropped["innovation"] += 1
         rej = self._rejected
         rej.append(entry)
@@ -462,52 +474,74 @@ class AuvTracker:
         dz = self.depth - net.depth[idx]
         return math.sqrt(dx * dx + dy * dy + dz * dz)
 
-    def _range_only(self, cyc: Cycle, r: float, out: list[AuvFix | AuvTrack]) -> None:
-        """A cycle on the listener's own beacon: one range, an EKF update."""
+    def _range_only(self, cyc: Cycle, idx: int, r: float, out: list[AuvFix | AuvTrack],
+                    fallback: bool = False) -> bool:
+        """One range to beacon ``idx`` (a cycle on the listener's own beacon, a
+        cycle whose reply was not heard, or with ``fallback`` one whose fix was
+        refused): an EKF update at the emission time (the listener's range to
+        it predicted when it is not measured).  True when accepted; with
+        ``fallback`` a refusal is neither counted nor published."""
         kf = self.kf
         if not kf.initialised:
-            self.dropped["range_only_uninitialised"] += 1
-            return
+            if not fallback:
+                self.dropped["range_only_uninitialised"] += 1
+            return False
         net = self.net
         p = self.p
         lst = net.listener
         c = net.c
-        t_em = cyc.t_i - r / c
+        depth = self.depth
+
+        def emission(r_b: float) -> tuple[float, float]:
+            """Emission time and the listener's range for a range r_b to idx."""
+            if idx == lst:
+                return cyc.t_i - r_b / c, r_b
+            x, y, _, _, _ = kf.predicted(cyc.t_i)
+            r_l = self._range3(lst, x, y)
+            x, y, _, _, _ = kf.predicted(cyc.t_i - r_l / c)
+            r_l = self._range3(lst, x, y)
+            return cyc.t_i - r_l / c, r_l
+
+        t_em, r_l = emission(r)
         px, py, _, _, _ = kf.predicted(t_em)
         bias = 0.0
         if p.motion_correction:
-            bias = motion_bias(net, lst, r, px, py, self.depth, kf.x[2], kf.x[3])
+            bias = motion_bias(net, idx, r, px, py, depth, kf.x[2], kf.x[3])
             r -= bias
-            t_em = cyc.t_i - r / c
+            t_em, r_l = emission(r)
             px, py, _, _, _ = kf.predicted(t_em)
-        dz = self.depth - net.depth[lst]
+        dz = depth - net.depth[idx]
         if horizontal_radius(r, dz) < -1.0:
-            self.dropped["depth"] += 1
-            return
+            if not fallback:
+                self.dropped["depth"] += 1
+            return False
         kf.predict(t_em)
-        dx, dy = px - net.north[lst], py - net.east[lst]
+        dx, dy = px - net.north[idx], py - net.east[idx]
         r_hat = math.sqrt(dx * dx + dy * dy + dz * dz)
-        j = range_jacobian(net, lst, px, py, self.depth)
-        var_i, _ = self._var(net, lst, p.timing_sigma_s, p.range_sigma_m)
+        j = range_jacobian(net, idx, px, py, depth)
+        var_i, _ = self._var(net, idx, p.timing_sigma_s, p.range_sigma_m)
         z = [r - r_hat + j[0] * px + j[1] * py]
         ok, _d2 = kf.update([j], z, [var_i], p.gate_chi2, p.soft_gate_chi2)
         # the point of the range circle nearest the prediction, for the record
         rho = max(horizontal_radius(r, dz), 0.0)
         hd = math.hypot(dx, dy)
         if hd > 1e-9:
-            cx, cy = net.north[lst] + dx / hd * rho, net.east[lst] + dy / hd * rho
+            cx, cy = net.north[idx] + dx / hd * rho, net.east[idx] + dy / hd * rho
         else:
             cx, cy = px, py
+        if not ok and fallback:
+            return False
         if ok:
-            self._ranges[lst] = (t_em, r, var_i)
-        fix = AuvFix(cyc.t, t_em, cyc.beacon, cx, cy, cx, cy, r, r, bias, ok, True)
+            self._ranges[idx] = (t_em, r, var_i)
+        fix = AuvFix(cyc.t, t_em, cyc.beacon, cx, cy, cx, cy, r, r_l, bias, ok, True)
         self.last_fix = fix
         out.append(fix)
         if not ok:
             self.dropped["innovation"] += 1
-            return
+            return False
         self._last_range_only = True
         self._accepted(t_em, cyc.t, cx, cy, var_i, out)
+        return True
 
     def _multi_fix(self, idx: int, t_em: float, r_i: float, r_l: float, var_i: float,
                    var_l: float, fx: float, fy: float
@@ -762,9 +796,9 @@ class AuvTracker:
         model's probability rose to ``maneuver_on``), ``during``, ``exit`` (it
         fell to ``maneuver_off``), or "" (straight, or a single-model filter)."""
         kf = self.kf
-        if not isinstance(kf, ImmCv):
+        if not isinstance(kf, Imm):
             return ""
-        mu = kf.mu[1]
+        mu = kf.maneuver_probability
         p = self.p
         if not self._maneuvering:
             if mu >= p.maneuver_on:
