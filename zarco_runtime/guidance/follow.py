@@ -53,6 +53,11 @@ from zarco_runtime.guidance.mission import Leg
 V_MIN_MPS = 0.05
 #: the look-ahead shrinks by half the along-track lag down to this fraction of it
 MIN_LOOKAHEAD_FRACTION = 0.3
+#: the boat's course over ground is taken over this long (s), above this speed (m/s)
+COG_WINDOW_S = 0.5
+COG_MIN_MPS = 0.25
+#: the virtual leg leads the boat's course over ground by at most this (rad)
+MAX_LEAD_RAD = math.radians(90.0)
 #: the AUV moves when its line's speed exceeds this many standard deviations
 MOVING_SIGMAS = 1.5
 #: length of the virtual leg laid past the aim point (m)
@@ -171,6 +176,9 @@ class FollowGuidance:
         self.moving = False
         self._psi_ref: float | None = None
         self._t_ref: float | None = None
+        self._t_now = 0.0
+        self._last_pos: tuple[float, float, float] | None = None
+        self._cog: float | None = None
 
     def _lost_reason(self, track: AuvTrack | None, t: float) -> str:
         if track is None:
@@ -190,6 +198,8 @@ class FollowGuidance:
     def update(self, track: AuvTrack | None, t: float, x: float, y: float) -> FollowState:
         """Guidance at runtime time ``t`` for the ASV at (x, y) (NED, m)."""
         cfg = self.cfg
+        self._t_now = t
+        self._track_cog(t, x, y)
         reason = self._lost_reason(track, t)
         if reason or track is None:
             self.target = None
@@ -224,13 +234,7 @@ class FollowGuidance:
         look = max(cfg.lookahead_m - 0.5 * max(-a, 0.0), MIN_LOOKAHEAD_FRACTION * cfg.lookahead_m)
         ahead = max(a, 0.0) + look
         ax, ay = tg.x + ahead * ux, tg.y + ahead * uy
-        psi = math.atan2(ay - y, ax - x)
-        # the leg turns no faster than the boat can
-        if self._psi_ref is not None and self._t_ref is not None and t > self._t_ref:
-            step = math.radians(cfg.max_turn_rate_dps) * (t - self._t_ref)
-            dpsi = math.remainder(psi - self._psi_ref, math.tau)
-            psi = self._psi_ref + max(-step, min(step, dpsi))
-        self._psi_ref, self._t_ref = psi, t
+        psi = self._steer(math.atan2(ay - y, ax - x), t)
         if (self._psi_leg is None
                 or abs(math.remainder(psi - self._psi_leg, math.tau))
                 > math.radians(cfg.new_line_deg)):
@@ -240,24 +244,58 @@ class FollowGuidance:
         v_ref = max(0.0, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
         v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
         cp, sp = math.cos(psi), math.sin(psi)
-        # from the ASV through the aim point, and on past it
-        leg = Leg(self.leg_id, x, y, ax + LEG_PAST_AIM_M * cp, ay + LEG_PAST_AIM_M * sp, v_ref)
+        # from the ASV towards the aim point (along the rate-limited course), and on
+        reach = math.hypot(ax - x, ay - y) + LEG_PAST_AIM_M
+        leg = Leg(self.leg_id, x, y, x + reach * cp, y + reach * sp, v_ref)
         return FollowState("follow", leg, c, -a, v_ref, "", tg.source)
+
+    def _track_cog(self, t: float, x: float, y: float) -> None:
+        """The boat's course over ground (rad) from its positions at least
+        ``COG_WINDOW_S`` apart; None while it moves slower than ``COG_MIN_MPS``."""
+        if self._last_pos is None or t < self._last_pos[0]:
+            self._last_pos = (t, x, y)
+            return
+        t0, x0, y0 = self._last_pos
+        if t - t0 < COG_WINDOW_S:
+            return
+        dx, dy = x - x0, y - y0
+        self._cog = (math.atan2(dy, dx) if math.hypot(dx, dy) >= COG_MIN_MPS * (t - t0)
+                     else None)
+        self._last_pos = (t, x, y)
+
+    def _steer(self, psi: float, t: float) -> float:
+        """The virtual leg's course towards ``psi`` (rad): turning no faster than
+        ``max_turn_rate_dps``, and never more than ``MAX_LEAD_RAD`` off the
+        boat's course over ground while it moves (a reversal is taken as a
+        turn the boat can follow, not as a heading error of 180°)."""
+        ref = self._psi_ref
+        if ref is not None and self._t_ref is not None and t > self._t_ref:
+            step = math.radians(self.cfg.max_turn_rate_dps) * (t - self._t_ref)
+            dpsi = math.remainder(psi - ref, math.tau)
+            psi = ref + max(-step, min(step, dpsi))
+        if self._cog is not None:
+            off = math.remainder(psi - self._cog, math.tau)
+            psi = self._cog + max(-MAX_LEAD_RAD, min(MAX_LEAD_RAD, off))
+        self._psi_ref, self._t_ref = psi, t
+        return psi
 
     def _hold(self, x: float, y: float, reason: str,
               above: tuple[float, float] | None = None) -> FollowState:
-        self._psi_ref = None
         if above is not None and all(math.isfinite(v) for v in above):
             self.hold = above
-        elif self.hold is None:
-            self.hold = (x, y)
+        elif self.hold is None and self.mode == "follow":
+            self.hold = (x, y)  # the track was lost here
         self.mode = "hold" if self._psi_leg is not None else "wait"
+        if self.hold is None:  # nothing to hold to yet: no leg
+            self._psi_ref = None
+            return FollowState(self.mode, None, 0.0, 0.0, 0.0, reason)
         hx, hy = self.hold
         dist = math.hypot(hx - x, hy - y)
         if dist <= self.cfg.hold_radius_m:
+            self._psi_ref = None
             return FollowState(self.mode, None, 0.0, 0.0, 0.0, reason)
         # head back to the hold point along a virtual leg from here
-        psi = math.atan2(hy - y, hx - x)
+        psi = self._steer(math.atan2(hy - y, hx - x), self._t_now)
         c, s = math.cos(psi), math.sin(psi)
-        leg = Leg(-1, x - c, y - s, hx, hy, self.cfg.hold_speed_mps)
+        leg = Leg(-1, x - c, y - s, x + dist * c, y + dist * s, self.cfg.hold_speed_mps)
         return FollowState(self.mode, leg, 0.0, 0.0, self.cfg.hold_speed_mps, reason)
