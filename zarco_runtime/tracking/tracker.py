@@ -3,15 +3,23 @@
 :class:`AuvTracker` glues the chain, one event at a time::
 
     AcousticEvent ─▶ clock check ─▶ CycleAssembler ─▶ cycle_ranges ─▶ motion-bias
-    correction ─▶ circle_fix (fix + mirror) ─▶ mirror choice ─▶ CvKalman (gated)
+    correction ─▶ circle_fix (fix + mirror) ─▶ mirror choice ─▶ filter (an IMM
+    of straight, manoeuvring and turning models, or one CV filter; gated)
     ─▶ LineRls (forgetting, re-centred, turn reset) ─▶ AuvTrack
 
 * Cycles on beacon i ≠ listener give a two-circle fix; cycles on the listener's
-  own beacon give one range and are applied as a range-only update.  Updates
-  are made in range space (the two ranges linearised at the chosen solution, or
-  at the prediction when both solutions are plausible near a baseline), so a
-  fix with poor geometry only informs the filter along the directions it
-  constrains.
+  own beacon, and cycles whose reply was missed (two interrogations), give one
+  range and are applied as a range-only update; a cycle whose two-range update
+  is refused is tried again on its interrogation-only range (the reply may be
+  a multipath or false one: ``reply_refused``).  Updates are made in range
+  space (the two ranges linearised at the chosen solution, or at the
+  prediction when both solutions are plausible near a baseline or the circles
+  miss each other), so a fix with poor geometry only informs the filter along
+  the directions it constrains, and every range is used once.
+* The published fix (:class:`AuvFix`) is the joint least-squares position of
+  the cycle's ranges and the newest accepted range to every other beacon heard
+  within ``ls_window_s`` (carried to the emission time along the filter's
+  velocity), with its covariance: more beacons never make it worse.
 * Initialisation resolves the mirror by a vote between fixes on different
   baselines (the true position is common to both, the mirrors are not); with a
   single baseline, by the configured prior.  Once the filter runs, the
@@ -24,10 +32,14 @@
   re-initialises from the fixes (``reacquired``): this undoes a lock on the
   mirror track after crossing a baseline, or a turn the filter lost, while
   outliers never win.
-* Manoeuvres: a two-sided CUSUM on the fixes' normalised cross-course
-  innovation (a turn pushes them steadily to one side) opens up the filter's
-  covariance (``maneuver``); a CUSUM on the RLS residuals declares a turn and
-  restarts the line from the filter's state (``turns``).
+* Manoeuvres: with the IMM, the probability that the AUV is not flying
+  straight rising to ``maneuver_on`` declares a turn: the line restarts from
+  the filter at every update until it falls to ``maneuver_off`` (TURNING set
+  meanwhile and ``turning_flag_s`` after).  Besides, a two-sided CUSUM on the
+  fixes' normalised cross-course innovation (a turn pushes them steadily to
+  one side) opens up the filter's covariance (``maneuver``), and a CUSUM on the
+  RLS residuals declares a turn and restarts the line from the filter's state
+  (``turns``).
 * Aging: no accepted update for ``stale_after_s`` sets STALE; for
   ``lost_after_s``, or a predicted position σ above ``lost_sigma_m``, the track
   is declared LOST (published once, then by :meth:`AuvTracker.tick`) and the
@@ -44,8 +56,8 @@ Counters (:meth:`AuvTracker.counters`): ``event.<reason>`` for dropped events
 ``fix.<reason>`` for cycles that gave no accepted update (``impossible_timing``,
 ``depth``, ``no_intersection``, ``innovation``, ``range_only_uninitialised``,
 ``init_pending``) and for tracker events (``maneuver``, ``reacquired``,
-``clock_resync``), ``internal`` for any unexpected exception (never raised:
-the tests assert it stays absent).
+``clock_resync``, ``reply_refused``), ``internal`` for any unexpected exception
+(never raised: the tests assert it stays absent).
 
 Pure and deterministic: no I/O, no clock reads.
 """
