@@ -55,7 +55,9 @@ def test_behind_it_speeds_up_ahead_it_slows_down() -> None:
     _moving(g2, tr)
     ahead = g2.update(tr, tr.t, 2.0, 0.0)
     assert ahead.speed_ref_mps == pytest.approx(0.8 - 2.0 / cfg.catchup_tau_s)
-    assert g2.update(tr, tr.t, 20.0, 0.0).speed_ref_mps == 0.0  # far ahead: wait for it
+    # far ahead: as slow as steering allows, and no reverse thrust
+    far = g2.update(tr, tr.t, 20.0, 0.0)
+    assert far.speed_ref_mps == cfg.min_speed_mps and far.along_error_m == 0.0
 
 
 def test_to_starboard_it_converges_to_port_at_the_line_of_sight_angle() -> None:
@@ -97,21 +99,30 @@ def test_follows_the_filter_when_the_line_disagrees_or_is_turning() -> None:
     assert (tg.x, tg.y) == pytest.approx((0.5 + 2.0, 0.3))
 
 
-def test_holds_above_a_still_auv_then_follows_when_it_moves_and_keeps_through_a_turn() -> None:
+def test_keeps_above_a_still_auv_then_follows_when_it_moves_and_keeps_through_a_turn() -> None:
     cfg = FollowSettings()
     g = FollowGuidance(cfg)
+    unsettled = _track(x=10.0, y=5.0, vx=0.04, vy=0.0, sv=0.03,
+                       flags=int(TrackFlags.INITIALISED))
+    assert g.update(unsettled, 99.0, 0.0, 0.0).leg is None  # no settled track: stay
     still = _track(x=10.0, y=5.0, vx=0.04, vy=0.0, sv=0.03)
     st = g.update(still, 100.0, 0.0, 0.0)
-    assert st.mode != "follow" and g.hold == pytest.approx((10.0, 5.0))
-    assert st.leg is not None and st.leg.n1 == pytest.approx(10.0)  # heads above it
+    assert not g.moving and st.reason == "above a still AUV"
+    assert st.leg is not None and st.leg.course_rad == pytest.approx(math.atan2(5.0, 10.0))
+    far = math.hypot(10.0, 5.0) / cfg.catchup_tau_s
+    assert st.speed_ref_mps == pytest.approx(min(cfg.max_speed_mps, far))
+    assert g.update(still, 101.0, 10.5, 5.5).leg is None  # within the hold radius: drift
     going = _track(x=10.0, y=5.0, vx=0.8, vy=0.0, sv=0.2)
-    assert g.update(going, 101.0, 9.0, 5.0).mode == "follow"
+    g.update(going, 102.0, 9.0, 5.0)
+    assert g.moving
     # in a turn the line's uncertainty grows: that is not a stop
     turning = _track(x=12.0, y=5.0, vx=0.5, vy=0.5, sv=0.6,
                      flags=VALID | int(TrackFlags.TURNING))
-    assert g.update(turning, 102.0, 11.0, 5.0).mode == "follow"
+    g.update(turning, 103.0, 11.0, 5.0)
+    assert g.moving
     stopped = _track(x=14.0, y=5.0, vx=0.03, vy=0.0, sv=0.05)
-    assert g.update(stopped, 110.0, 14.0, 5.0).mode != "follow"
+    g.update(stopped, 110.0, 14.0, 5.0)
+    assert not g.moving
 
 
 def test_a_lost_track_holds_where_the_boat_is() -> None:

@@ -27,17 +27,20 @@ the line controller's heading law steers its course over ground along it.
 Speed: the paper's surge law X = F_f(v_AUV) + k_v(v_AUV − v) + k_s(s_AUV − s)
 + k_i∫(s_AUV − s) dt, with the catch-up moved into the speed reference::
 
-    v_ref = clamp(v_AUV − a / τ_c, 0, v_max) / max(cos θ, 0.5)
+    v_ref = clamp(v_AUV − a / τ_c, v_min, v_max) / max(cos θ, 0.5)
 
 θ the angle between the leg and the AUV's course (the along-track part of the
-ASV's speed is what closes the gap).  The line controller's speed loop then
-adds the feedforward F_f(v_ref) that catching up needs; k_s and k_i (the
-``along_error_m`` passed to it) only trim what is left.
+ASV's speed is what closes the gap), v_min enough to steer across a current.
+The line controller's speed loop then adds the feedforward F_f(v_ref) that
+catching up needs; k_s and k_i (on ``along_error_m``, the lead when the AUV is
+ahead, 0 when the boat is) only trim what is left.
 
 When the track is lost (no fix for the configured time, a covariance too
 large, or the tracker says so) the boat slows down and holds the position
-where it lost it, and resumes following when the track is back; above a
-still AUV it holds above it once the track has settled.
+where it lost it, and resumes following when the track is back.  Above a
+still AUV it keeps within ``hold_radius_m`` of the filter's position once the
+track has settled, going back there (faster the further it is) when it
+drifts off or the AUV starts to move.
 """
 
 from __future__ import annotations
@@ -70,9 +73,13 @@ class FollowSettings:
 
     k_s: float = spec(5.0, "N/m", "surge force per metre the AUV is ahead along its track "
                       "(the speed reference already closes the gap)", min=0.0, max=1e4)
-    k_i: float = spec(0.5, "N/(m s)", "integral of the along-track lead", min=0.0, max=1e4)
+    k_i: float = spec(0.0, "N/(m s)", "integral of the along-track lead (the speed loop's "
+                      "integral already removes a steady lag)", min=0.0, max=1e4)
     along_clamp_m: float = spec(8.0, "m", "along-track lead used at most by the surge law",
                                 min=0.1, max=1e4)
+    min_speed_mps: float = spec(0.3, "m/s", "slowest speed reference while following (ahead "
+                                "of the AUV): enough to steer across a current",
+                                min=0.0, max=3.0)
     max_speed_mps: float = spec(1.5, "m/s", "fastest speed reference while catching up",
                                 min=0.1, max=3.0)
     lookahead_m: float = spec(5.0, "m", "line-of-sight look-ahead Δ: the ASV converges "
@@ -219,10 +226,14 @@ class FollowGuidance:
         elif v_line + 2.0 * sv < cfg.still_speed_mps:
             self.moving = False
         if not (self.moving and v >= V_MIN_MPS):
-            # AUV still: hold above it once its track has settled, else where we are
+            # AUV still: keep above it once its track has settled (going to where
+            # the filter has it, so a start is followed before it is declared),
+            # else hold where we are
             settled = (track.kf_pos_sigma_m <= cfg.hold_above_sigma_m
                        and bool(track.flags & TrackFlags.LINE_VALID))
-            return self._hold(x, y, "AUV (nearly) still", (tg.x, tg.y) if settled else None)
+            if not settled:
+                return self._hold(x, y, "AUV (nearly) still, track settling")
+            return self._above(tg, t, x, y)
         self.hold = None
         self.mode = "follow"
         ux, uy = tg.vx / v, tg.vy / v
@@ -241,13 +252,36 @@ class FollowGuidance:
             self.leg_id += 1
             self._psi_leg = psi
         theta = math.remainder(psi - math.atan2(uy, ux), math.tau)
-        v_ref = max(0.0, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
+        v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
         v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
         cp, sp = math.cos(psi), math.sin(psi)
         # from the ASV towards the aim point (along the rate-limited course), and on
         reach = math.hypot(ax - x, ay - y) + LEG_PAST_AIM_M
         leg = Leg(self.leg_id, x, y, x + reach * cp, y + reach * sp, v_ref)
-        return FollowState("follow", leg, c, -a, v_ref, "", tg.source)
+        # the along-track trim only pushes forward: ahead of the AUV the speed
+        # reference slows the boat, and a reverse thrust would drive it the wrong
+        # way while it still faces away from the AUV's course
+        return FollowState("follow", leg, c, max(-a, 0.0), v_ref, "", tg.source)
+
+    def _above(self, tg: Target, t: float, x: float, y: float) -> FollowState:
+        """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
+        position, else go there (faster the further it is)."""
+        cfg = self.cfg
+        self.hold = None
+        self.mode = "follow"
+        dist = math.hypot(tg.x - x, tg.y - y)
+        if dist <= cfg.hold_radius_m:
+            self._psi_ref = None
+            return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source)
+        psi = self._steer(math.atan2(tg.y - y, tg.x - x), t)
+        if self._psi_leg is None or abs(math.remainder(psi - self._psi_leg, math.tau)) > \
+                math.radians(cfg.new_line_deg):
+            self.leg_id += 1
+            self._psi_leg = psi
+        v_ref = min(cfg.max_speed_mps, max(cfg.hold_speed_mps, dist / cfg.catchup_tau_s))
+        c, s = math.cos(psi), math.sin(psi)
+        leg = Leg(self.leg_id, x, y, x + dist * c, y + dist * s, v_ref)
+        return FollowState("follow", leg, 0.0, 0.0, v_ref, "above a still AUV", tg.source)
 
     def _track_cog(self, t: float, x: float, y: float) -> None:
         """The boat's course over ground (rad) from its positions at least

@@ -17,7 +17,8 @@ Rules, all on the listener's UTC times (s):
   it comes sooner than the AUV could possibly ping again
   (τ_i + δ + 2 r_min / c, r_min the AUV's depth offset from beacon i), which
   marks it a false or multipath detection (``impossible_timing``), or later than
-  τ_i + δ + 2 r_max / c, which means the closing ping was missed
+  τ_i + δ + 2 r_max / c, or addresses beacon i again (the AUV interrogates
+  another beacon after each reply), which means the closing ping was missed
   (cycle dropped ``missed_ping``);
 * a second ``R`` for an already answered ``I`` is a late (multipath) arrival;
 * two interrogations in a row with the reply between them missed still make a
@@ -209,7 +210,9 @@ class CycleAssembler:
                 return None
             self._open = None
             net = self.net
-            if dt > p_hi:
+            if dt > p_hi or (oidx == idx and net.n > 1):
+                # too late, or the AUV cannot ping the same beacon twice in a row:
+                # the pings between were missed
                 self.cycles_dropped["missed_ping"] += 1
             elif (self._seq_next is not None
                   and self._seq_next.get(net.ids[oidx]) != net.ids[idx]):
@@ -226,6 +229,8 @@ class CycleAssembler:
         with the reply between them not heard: still a range to ``pidx`` when
         the interval is the one the prediction expects (only while tracking)."""
         net = self.net
+        if pidx == idx and net.n > 1:  # a ping in between was missed
+            return None
         pred = self.predictor(pidx, t_prev) if self.predictor is not None else None
         if pred is None:
             return None

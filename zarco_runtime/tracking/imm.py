@@ -17,11 +17,13 @@ Models:
 At every step the models are mixed by a Markov chain whose switching
 probabilities follow the elapsed time (model j is left at the rate
 1/``sojourn_s[j]``, for the others in equal shares), each is propagated, and
-each is weighted by how well it predicted the measurement.  Gating: a
-measurement is refused only when no model finds it within the gate (so the
-turning model takes a turn the quiet one gates out); each model down-weights
-it beyond ``soft_chi2`` by its own d² (Huber), and the models' likelihoods are
-Huber likelihoods (one outlier shifts the probabilities by a bounded factor).
+each is weighted by how well it predicted the measurement.  Gating is on the
+combined estimate (whose covariance holds the models' spread); each model
+down-weights an accepted measurement beyond ``soft_chi2`` by its own d²
+(Huber: the turning model takes a turn the quiet one discounts), and the
+models' likelihoods cap d² at ``LIKELIHOOD_CAP_CHI2`` (one outlier shifts the
+probabilities by a bounded factor; a turn, several moderate innovations in a
+row, still does).
 
 The interface is :class:`~zarco_runtime.tracking.kalman.CvKalman`'s:
 :attr:`Imm.x` and :attr:`Imm.P` are the combined (moment-matched) position and
@@ -37,6 +39,8 @@ from __future__ import annotations
 import math
 
 N = 5
+#: d² beyond which an innovation weighs no more in the model likelihoods
+LIKELIHOOD_CAP_CHI2 = 6.0
 #: variance of ω in a constant-velocity model ((rad/s)²: about 3 °/s 1σ)
 CV_OMEGA_VAR = 0.05 ** 2
 
@@ -333,8 +337,8 @@ class Imm:
 
     def update(self, rows: list[tuple[float, float]], z: list[float], var: list[float],
                gate_chi2: float = math.inf, soft_chi2: float = math.inf) -> tuple[bool, float]:
-        """Measurement update (module docstring).  Returns (accepted, d² of the
-        combined estimate)."""
+        """Measurement update (module docstring): refused when the combined
+        estimate's d² exceeds ``gate_chi2``.  Returns (accepted, that d²)."""
         ms = self.models
         dl = [mdl.innovation(rows, z, var) for mdl in ms]
         x, P = self.x, self.P
@@ -342,21 +346,21 @@ class Imm:
         comb.x = [*x, 0.0]
         comb.P = [[*row, 0.0] for row in P] + [[0.0] * N]
         d2c, _ = comb.innovation(rows, z, var)
-        if not min(d for d, _ in dl) <= gate_chi2:
+        if not d2c <= gate_chi2:
             return False, d2c
-        k = math.sqrt(soft_chi2) if math.isfinite(soft_chi2) else math.inf
         logl = []
         for mdl, (dj, ldet) in zip(ms, dl, strict=True):
             if not math.isfinite(dj):
                 logl.append(-math.inf)
                 continue
             if dj > soft_chi2:
-                rho = k * math.sqrt(dj) - 0.5 * soft_chi2
                 mdl.update(rows, z, [v * dj / soft_chi2 for v in var])
             else:
-                rho = 0.5 * dj
                 mdl.update(rows, z, var)
-            logl.append(-rho - 0.5 * ldet)
+            # a capped loss: beyond LIKELIHOOD_CAP_CHI2 an innovation is no more
+            # evidence for one model than for another (one outlier is not a turn;
+            # a turn shows as several moderate innovations in a row)
+            logl.append(-0.5 * min(dj, LIKELIHOOD_CAP_CHI2) - 0.5 * ldet)
         top = max(logl)
         if math.isfinite(top):
             w = [m * math.exp(ll - top) for m, ll in zip(self.mu, logl, strict=True)]

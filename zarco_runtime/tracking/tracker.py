@@ -55,7 +55,8 @@ Counters (:meth:`AuvTracker.counters`): ``event.<reason>`` for dropped events
 (see :mod:`.cycles`, plus ``clock``), ``cycle.<reason>`` for lost cycles,
 ``fix.<reason>`` for cycles that gave no accepted update (``impossible_timing``,
 ``depth``, ``no_intersection``, ``innovation``, ``range_only_uninitialised``,
-``init_pending``) and for tracker events (``maneuver``, ``reacquired``,
+``init_pending``, ``inconsistent``: its ranges disagree with the other
+beacons') and for tracker events (``maneuver``, ``reacquired``,
 ``clock_resync``, ``reply_refused``), ``internal`` for any unexpected exception
 (never raised: the tests assert it stays absent).
 
@@ -93,6 +94,9 @@ CLOCK_LEAK = 1e-3
 CLOCK_RESYNC_N = 5
 #: fixes remembered for the mirror vote at (re)initialisation
 INIT_MEMORY = 16
+#: cycles dropped in a row after which the prediction no longer narrows the
+#: closing window (see AuvTracker._predict_range)
+WINDOW_OFF_DROPS = 6
 
 
 class _InitEntry:
@@ -281,9 +285,17 @@ class AuvTracker:
 
     def _predict_range(self, idx: int, t_i: float) -> tuple[float, float] | None:
         """Predicted 3-D range (m) from beacon ``idx`` to the AUV for an
-        interrogation heard at UTC ``t_i``, and its 1σ (m); None when not tracking."""
+        interrogation heard at UTC ``t_i``, and its 1σ (m); None when not
+        tracking, or when ``WINDOW_OFF_DROPS`` cycles in a row were dropped since
+        the last accepted update (the prediction may be what keeps the true
+        cycles out: without it they are assembled again, refused by the
+        filter, and the re-acquisition vote decides)."""
         kf = self.kf
         if not kf.initialised:
+            return None
+        drops = self.cycles.cycles_dropped
+        if (drops["missed_ping"] + drops["superseded"] + drops["sequence"]
+                - self._drops_at_update >= WINDOW_OFF_DROPS):
             return None
         net = self.net
         lst = net.listener
@@ -377,14 +389,21 @@ class AuvTracker:
         # the ranges linearised at (lx, ly): r ≈ r̂(l) + J (p − l)
         z = [r_i - self._range3(idx, lx, ly) + ji[0] * lx + ji[1] * ly,
              r_l - self._range3(net.listener, lx, ly) + jl[0] * lx + jl[1] * ly]
+        mx, my = (cf.x2, cf.y2) if (fx, fy) == (cf.x1, cf.y1) else (cf.x1, cf.y1)
+        ls, consistent = self._multi_fix(idx, t_em, r_i, r_l, var_i, var_l, fx, fy)
+        if not consistent:
+            # the cycle's ranges disagree with every other beacon's: a false or
+            # late detection in it, whatever the filter says
+            self.dropped["inconsistent"] += 1
+            self._emit_fix(cyc, t_em, cf, fx, fy, r_i, r_l, bias, False, out)
+            self._last_range_only = False
+            return
         lat = self._lateral(fx - px, fy - py, pxx, pxy, pyy, ji, jl, var_i, var_l)
         ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2,
                                 p.soft_gate_chi2)
         if lat is not None and self._maneuver(lat) and not ok:
             ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2,
                                 p.soft_gate_chi2)
-        mx, my = (cf.x2, cf.y2) if (fx, fy) == (cf.x1, cf.y1) else (cf.x1, cf.y1)
-        ls = self._multi_fix(idx, t_em, r_i, r_l, var_i, var_l, fx, fy)
         fix = AuvFix(cyc.t, t_em, cyc.beacon, ls[0], ls[1], mx, my, r_i, r_l, bias, ok,
                      False, ls[2], ls[3], ls[4])
         self.last_fix = fix
@@ -533,7 +552,9 @@ class AuvTracker:
         j = range_jacobian(net, idx, px, py, depth)
         var_i, _ = self._var(net, idx, p.timing_sigma_s, p.range_sigma_m)
         z = [r - r_hat + j[0] * px + j[1] * py]
-        ok, _d2 = kf.update([j], z, [var_i], p.gate_chi2, p.soft_gate_chi2)
+        # a fallback must agree well: it only replaces a reply, not the filter's doubt
+        gate = p.soft_gate_chi2 if fallback else p.gate_chi2
+        ok, _d2 = kf.update([j], z, [var_i], gate, p.soft_gate_chi2)
         # the point of the range circle nearest the prediction, for the record
         rho = max(horizontal_radius(r, dz), 0.0)
         hd = math.hypot(dx, dy)
@@ -557,7 +578,7 @@ class AuvTracker:
 
     def _multi_fix(self, idx: int, t_em: float, r_i: float, r_l: float, var_i: float,
                    var_l: float, fx: float, fy: float
-                   ) -> tuple[float, float, float, float, float]:
+                   ) -> tuple[tuple[float, float, float, float, float], bool]:
         """The cycle's fix with every beacon heard within ``ls_window_s``: each
         older range brought to ``t_em`` along the filter's velocity (its
         variance grown by the velocity's uncertainty and the manoeuvring
@@ -565,8 +586,9 @@ class AuvTracker:
         position from the chosen two-circle solution (fx, fy).  Returns
         (x, y, Cxx, Cxy, Cyy); the two-circle solution (and its covariance) when
         no other beacon was heard or the ranges do not agree on one position
-        (χ² of the residuals beyond ``gate_chi2`` + 2 per extra range).  Only
-        ranges of accepted cycles are remembered for later fixes."""
+        (χ² of the residuals beyond ``gate_chi2`` + 2 per extra range), and
+        whether they agree (True with no other beacon).  Only ranges of
+        accepted cycles are remembered for later fixes."""
         net = self.net
         p = self.p
         lst = net.listener
@@ -590,10 +612,12 @@ class AuvTracker:
             # the joint solution, unless the ranges disagree (a false or late
             # detection in this cycle): then the cycle's own pair
             sol = ls_fix(net, ranges, depth, fx, fy)
-            if sol is not None and ls_chi2(net, ranges, depth, sol[0], sol[1]) <= (
-                    p.gate_chi2 + 2.0 * (len(ranges) - 2)):
-                return sol
-        return fx, fy, *c2
+            if sol is not None:
+                if ls_chi2(net, ranges, depth, sol[0], sol[1]) <= (
+                        p.gate_chi2 + 2.0 * (len(ranges) - 2)):
+                    return sol, True
+                return (fx, fy, *c2), False
+        return (fx, fy, *c2), True
 
     def _lateral(self, ex: float, ey: float, pxx: float, pxy: float, pyy: float,
                  ji: tuple[float, float], jl: tuple[float, float], var_i: float,
@@ -672,8 +696,8 @@ class AuvTracker:
         another baseline votes for the solution it has a candidate near (within
         ``init_agree_m`` + ``max_speed_mps`` × their time apart) when it is near
         only one of them; a solution needs more than twice the other's votes.
-        With a single baseline the prior decides (and with ``reinit``,
-        ``reacquire_after`` fixes must agree with the choice).
+        With a single baseline the prior decides, and ``reacquire_after`` fixes
+        must agree with the choice.
         Returns (chosen position, the recent fixes) or None (undecided)."""
         if not buf:
             return None
@@ -688,12 +712,13 @@ class AuvTracker:
         if baselines <= 1:
             px, py = self._prior
             chosen = c1 if math.dist(c1, (px, py)) <= math.dist(c2, (px, py)) else c2
-            if reinit:
-                agree = sum(1 for e in recent if min(
-                    math.dist((e.cf.x1, e.cf.y1), chosen), math.dist((e.cf.x2, e.cf.y2), chosen))
-                    <= p.init_agree_m + p.max_speed_mps * abs(last.t - e.t))
-                if agree < p.reacquire_after:
-                    return None
+            # the prior only picks the side; ``reacquire_after`` fixes must agree
+            # (a cycle mis-assembled from missed pings gives a fix far off)
+            agree = sum(1 for e in recent if min(
+                math.dist((e.cf.x1, e.cf.y1), chosen), math.dist((e.cf.x2, e.cf.y2), chosen))
+                <= p.init_agree_m + p.max_speed_mps * abs(last.t - e.t))
+            if agree < p.reacquire_after:
+                return None
         else:
             v1 = v2 = 0
             near_any = False
@@ -767,6 +792,8 @@ class AuvTracker:
         rls = self.rls
         self.fixes_accepted += 1
         self._last_update_utc = t_em
+        drops = self.cycles.cycles_dropped
+        self._drops_at_update = drops["missed_ping"] + drops["superseded"] + drops["sequence"]
         self._lost = False
         P = kf.P
         floor = p.rls_sigma_floor_m
