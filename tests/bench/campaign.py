@@ -66,6 +66,8 @@ LOST_S = 10.0
 #: hull parameters scaled ±25 % in the simulated plant
 HULL = ("m_kg", "iz_kgm2", "x_udot", "y_vdot", "n_rdot", "x_u", "x_uu", "y_v", "y_vv",
         "n_r", "n_rr")
+#: closing-speed classes (m/s) of the pass table
+CLOSING_BINS = ((-9.0, 0.0), (0.0, 0.2), (0.2, 0.4), (0.4, 0.6), (0.6, 9.0))
 #: nominal hull (the runtime's model) and thrust, for the closing-speed figure
 NOM_XU, NOM_XUU, NOM_FWD = -25.0, -82.0, 125.0
 
@@ -415,9 +417,16 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
     uturn_pass = sum(1 for t in ut if t["distance_max_m"] is not None and t["distance_max_m"]
                      <= UTURN_MAX_M and t["recovery_s"] is not None
                      and t["recovery_s"] <= UTURN_REC_S)
+    by_closing = []
+    for lo, hi in CLOSING_BINS:
+        sel = [r for r in results if lo <= r["meta"]["closing_mps"] < hi]
+        by_closing.append({"closing_mps": [lo, hi], "missions": len(sel),
+                           "passed": sum(1 for r in sel if not r["fails"]),
+                           "failed_targets": sorted({k for r in sel for k in r["fails"]})})
     return {
         "missions": len(results),
         "missions_passed": sum(1 for r in results if not r["fails"]),
+        "by_closing_speed": by_closing,
         "pass": pass_counts,
         "turns": {"n": len(tt), "passed": turn_pass,
                   "unrecovered": sum(1 for t in tt if t["recovery_s"] is None)},
@@ -536,6 +545,13 @@ def main() -> None:
         if d:
             print(f"  {k:<20} {d['p50']:8.2f} {d['p90']:8.2f} {d['max']:8.2f}  (n={d['n']})",
                   file=sys.stderr)
+    print("\nby closing speed (the ASV's top ground speed along the AUV's legs minus "
+          "the AUV's, least over the mission):", file=sys.stderr)
+    for row in summ["by_closing_speed"]:
+        lo, hi = row["closing_mps"]
+        print(f"  {lo:+5.1f} … {hi:+5.1f} m/s: {row['passed']:3d} of {row['missions']:3d} "
+              f"missions pass; failing: {', '.join(row['failed_targets']) or '—'}",
+              file=sys.stderr)
     print(f"pass counts of {len(results)}: {json.dumps(summ['pass'])}; turns "
           f"{summ['turns']['passed']}/{summ['turns']['n']}, U-turns "
           f"{summ['uturns']['passed']}/{summ['uturns']['n']}", file=sys.stderr)

@@ -94,6 +94,8 @@ CLOCK_LEAK = 1e-3
 CLOCK_RESYNC_N = 5
 #: fixes remembered for the mirror vote at (re)initialisation
 INIT_MEMORY = 16
+#: χ² by which the other beacons' ranges must prefer one mirror solution
+MIRROR_CHI2_MARGIN = 9.0
 #: cycles dropped in a row after which the prediction no longer narrows the
 #: closing window (see AuvTracker._predict_range)
 WINDOW_OFF_DROPS = 6
@@ -374,6 +376,11 @@ class AuvTracker:
             fx, fy = cf.x2, cf.y2
         else:
             fx, fy = cf.x1, cf.y1
+        # ... unless the other beacons' recent ranges tell the two apart (they do
+        # not depend on the filter, which a turn or a mirror lock may have misled)
+        by_ranges = self._mirror_by_ranges(idx, t_em, r_i, r_l, var_i, var_l, cf)
+        if by_ranges is not None:
+            fx, fy = by_ranges
         kf.predict(t_em)
         ambiguous = det > 0.0 and max(m1, m2) <= p.gate_chi2 * det
         if ambiguous or cf.gap_m > 0.0:
@@ -576,6 +583,65 @@ class AuvTracker:
         self._accepted(t_em, cyc.t, cx, cy, var_i, out)
         return True
 
+    def _other_ranges(self, idx: int, t_em: float, x: float, y: float
+                      ) -> list[tuple[int, float, float]]:
+        """The newest accepted range to every beacon but ``idx`` and the listener,
+        heard within ``ls_window_s`` before ``t_em``, carried to ``t_em`` along
+        the filter's velocity (directions taken at (x, y)), its variance grown
+        by the velocity's uncertainty and the manoeuvring model's acceleration."""
+        kf = self.kf
+        if not kf.initialised:
+            return []
+        net = self.net
+        p = self.p
+        lst = net.listener
+        vx, vy = kf.x[2], kf.x[3]
+        P = kf.P
+        out = []
+        for k, (tk, rk, vk) in self._ranges.items():
+            dt = t_em - tk
+            if k in (idx, lst) or not 0.0 <= dt <= p.ls_window_s:
+                continue
+            jx, jy = range_jacobian(net, k, x, y, self.depth)
+            pv = jx * jx * P[2][2] + 2.0 * jx * jy * P[2][3] + jy * jy * P[3][3]
+            grow = dt * dt * pv + p.maneuver_accel_psd * dt ** 3 / 3.0
+            out.append((k, rk + (jx * vx + jy * vy) * dt, vk + grow))
+        return out
+
+    def _mirror_by_ranges(self, idx: int, t_em: float, r_i: float, r_l: float,
+                          var_i: float, var_l: float, cf: CircleFix
+                          ) -> tuple[float, float] | None:
+        """The two-circle solution the other beacons' ranges choose: the joint
+        least squares started from each solution, the one that explains all
+        ranges (χ² within ``gate_chi2`` + 2 per extra range) clearly better than
+        the other (by ``MIRROR_CHI2_MARGIN``) or both converging to one point;
+        None when they cannot tell (no other beacon, or both fit)."""
+        if math.hypot(cf.x1 - cf.x2, cf.y1 - cf.y2) < 1.0:
+            return None
+        net = self.net
+        mx, my = 0.5 * (cf.x1 + cf.x2), 0.5 * (cf.y1 + cf.y2)
+        others = self._other_ranges(idx, t_em, mx, my)
+        if not others:
+            return None
+        ranges = [(idx, r_i, var_i), (net.listener, r_l, var_l), *others]
+        depth = self.depth
+        fits = []
+        for cx, cy in ((cf.x1, cf.y1), (cf.x2, cf.y2)):
+            sol = ls_fix(net, ranges, depth, cx, cy)
+            if sol is None:
+                return None
+            fits.append((ls_chi2(net, ranges, depth, sol[0], sol[1]), sol[0], sol[1]))
+        (c1, x1, y1), (c2, x2, y2) = fits
+        best = fits[0] if c1 <= c2 else fits[1]
+        if best[0] > self.p.gate_chi2 + 2.0 * len(others):
+            return None
+        if abs(c1 - c2) < MIRROR_CHI2_MARGIN and math.hypot(x1 - x2, y1 - y2) > 1.0:
+            return None
+        bx, by = best[1], best[2]
+        if (cf.x1 - bx) ** 2 + (cf.y1 - by) ** 2 <= (cf.x2 - bx) ** 2 + (cf.y2 - by) ** 2:
+            return cf.x1, cf.y1
+        return cf.x2, cf.y2
+
     def _multi_fix(self, idx: int, t_em: float, r_i: float, r_l: float, var_i: float,
                    var_l: float, fx: float, fy: float
                    ) -> tuple[tuple[float, float, float, float, float], bool]:
@@ -591,21 +657,9 @@ class AuvTracker:
         accepted cycles are remembered for later fixes."""
         net = self.net
         p = self.p
-        lst = net.listener
-        kf = self.kf
         depth = self.depth
-        ranges = [(idx, r_i, var_i), (lst, r_l, var_l)]
-        if kf.initialised:
-            vx, vy = kf.x[2], kf.x[3]
-            P = kf.P
-            for k, (tk, rk, vk) in self._ranges.items():
-                dt = t_em - tk
-                if k in (idx, lst) or not 0.0 <= dt <= p.ls_window_s:
-                    continue
-                jx, jy = range_jacobian(net, k, fx, fy, depth)
-                pv = jx * jx * P[2][2] + 2.0 * jx * jy * P[2][3] + jy * jy * P[3][3]
-                grow = dt * dt * pv + p.maneuver_accel_psd * dt ** 3 / 3.0
-                ranges.append((k, rk + (jx * vx + jy * vy) * dt, vk + grow))
+        ranges = [(idx, r_i, var_i), (net.listener, r_l, var_l),
+                  *self._other_ranges(idx, t_em, fx, fy)]
         two = ls_fix(net, ranges[:2], depth, fx, fy, 1)
         c2 = (two[2], two[3], two[4]) if two is not None else (math.nan,) * 3
         if len(ranges) > 2:
