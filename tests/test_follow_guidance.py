@@ -68,9 +68,9 @@ def test_to_starboard_it_converges_to_port_at_the_line_of_sight_angle() -> None:
     st = g.update(tr, tr.t + 1.0, 0.0, 3.0)  # 3 m east: to starboard, level with it
     assert st.d_m == pytest.approx(3.0)
     assert st.leg is not None
-    # the AUV is now 1 m north, so the boat is 1 m behind: it aims Δ − 0.5 m
-    # ahead of the AUV, course atan2(−3, 1 + Δ − 0.5) — to port
-    assert st.leg.course_rad == pytest.approx(math.atan2(-3.0, 0.5 + cfg.lookahead_m))
+    # the AUV is now 1 m north, so the boat is 1 m behind: it aims Δ ahead of
+    # its own projection on the AUV's track, course atan2(−3, Δ) — to port
+    assert st.leg.course_rad == pytest.approx(math.atan2(-3.0, cfg.lookahead_m))
 
 
 def test_the_leg_turns_no_faster_than_the_boat() -> None:

@@ -54,8 +54,10 @@ from zarco_runtime.guidance.mission import Leg
 
 #: below this AUV speed (m/s) the course is undefined: hold above it
 V_MIN_MPS = 0.05
-#: the look-ahead shrinks by half the along-track lag down to this fraction of it
-MIN_LOOKAHEAD_FRACTION = 0.3
+#: the look-ahead shrinks by the along-track lag down to this fraction of it
+MIN_LOOKAHEAD_FRACTION = 0.1
+#: a target that jumps further than this (m) is followed at once (re-acquired)
+TARGET_RESET_M = 8.0
 #: the boat's course over ground is taken over this long (s), above this speed (m/s)
 COG_WINDOW_S = 0.5
 COG_MIN_MPS = 0.25
@@ -89,6 +91,9 @@ class FollowSettings:
                                     "steered)", min=1.0, max=360.0)
     catchup_tau_s: float = spec(5.0, "s", "time constant of closing an along-track gap "
                                 "(speed reference v_AUV + gap/τ)", min=0.5, max=600.0)
+    target_tau_s: float = spec(1.5, "s", "the AUV's position is low-passed over this about "
+                               "its velocity (fixes move the aim smoothly)", min=0.01,
+                               max=60.0)
     line_gate_m: float = spec(3.0, "m", "the RLS line is used only while its position "
                               "agrees with the Kalman filter's within this plus 3σ",
                               min=0.1, max=1000.0)
@@ -186,6 +191,7 @@ class FollowGuidance:
         self._t_now = 0.0
         self._last_pos: tuple[float, float, float] | None = None
         self._cog: float | None = None
+        self._sm: tuple[float, float, float] | None = None
 
     def _lost_reason(self, track: AuvTrack | None, t: float) -> str:
         if track is None:
@@ -211,7 +217,8 @@ class FollowGuidance:
         if reason or track is None:
             self.target = None
             return self._hold(x, y, reason or "no AUV track yet")
-        tg = target_now(track, t, cfg.line_gate_m, math.radians(cfg.line_course_gate_deg))
+        tg = self._smooth(target_now(track, t, cfg.line_gate_m,
+                                     math.radians(cfg.line_course_gate_deg)), t)
         self.target = tg
         v = math.hypot(tg.vx, tg.vy)
         # moving: the line's speed (re-seeded from the filter at every manoeuvre,
@@ -242,7 +249,7 @@ class FollowGuidance:
         c = -ex * uy + ey * ux  # > 0: the ASV is to starboard of its track
         # far behind, aim nearer the AUV itself: its course (the noisiest part of
         # the estimate) then swings the aim less
-        look = max(cfg.lookahead_m - 0.5 * max(-a, 0.0), MIN_LOOKAHEAD_FRACTION * cfg.lookahead_m)
+        look = max(cfg.lookahead_m - max(-a, 0.0), MIN_LOOKAHEAD_FRACTION * cfg.lookahead_m)
         ahead = max(a, 0.0) + look
         ax, ay = tg.x + ahead * ux, tg.y + ahead * uy
         psi = self._steer(math.atan2(ay - y, ax - x), t)
@@ -262,6 +269,24 @@ class FollowGuidance:
         # reference slows the boat, and a reverse thrust would drive it the wrong
         # way while it still faces away from the AUV's course
         return FollowState("follow", leg, c, max(-a, 0.0), v_ref, "", tg.source)
+
+    def _smooth(self, tg: Target, t: float) -> Target:
+        """The target's position low-passed over ``target_tau_s`` about its own
+        motion (no lag at constant velocity): a new fix moves it smoothly, not
+        in a step the boat would steer at.  A jump beyond ``TARGET_RESET_M``
+        (re-acquisition) is taken at once."""
+        sm = self._sm
+        if sm is None or t <= sm[0] or math.hypot(tg.x - sm[1], tg.y - sm[2]) > TARGET_RESET_M:
+            self._sm = (t, tg.x, tg.y)
+            return tg
+        dt = t - sm[0]
+        x = sm[1] + tg.vx * dt
+        y = sm[2] + tg.vy * dt
+        a = min(1.0, dt / self.cfg.target_tau_s)
+        x += a * (tg.x - x)
+        y += a * (tg.y - y)
+        self._sm = (t, x, y)
+        return Target(x, y, tg.vx, tg.vy, tg.source)
 
     def _above(self, tg: Target, t: float, x: float, y: float) -> FollowState:
         """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
