@@ -192,6 +192,7 @@ class FollowGuidance:
         self._last_pos: tuple[float, float, float] | None = None
         self._cog: float | None = None
         self._sm: tuple[float, float, float] | None = None
+        self._was_above = False
 
     def _lost_reason(self, track: AuvTrack | None, t: float) -> str:
         if track is None:
@@ -236,8 +237,11 @@ class FollowGuidance:
             # AUV still: keep above it once its track has settled (going to where
             # the filter has it, so a start is followed before it is declared),
             # else hold where we are
+            # (the filter alone: a start restarts the line, which is not a reason
+            # to stop going where the AUV is)
             settled = (track.kf_pos_sigma_m <= cfg.hold_above_sigma_m
-                       and bool(track.flags & TrackFlags.LINE_VALID))
+                       and bool(track.flags & TrackFlags.INITIALISED)
+                       and (self._was_above or bool(track.flags & TrackFlags.LINE_VALID)))
             if not settled:
                 return self._hold(x, y, "AUV (nearly) still, track settling")
             return self._above(tg, t, x, y)
@@ -292,6 +296,7 @@ class FollowGuidance:
         """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
         position, else go there (faster the further it is)."""
         cfg = self.cfg
+        self._was_above = True
         self.hold = None
         self.mode = "follow"
         dist = math.hypot(tg.x - x, tg.y - y)

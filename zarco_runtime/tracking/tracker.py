@@ -9,10 +9,10 @@
 
 * Cycles on beacon i ≠ listener give a two-circle fix; cycles on the listener's
   own beacon, and cycles whose reply was missed (two interrogations), give one
-  range and are applied as a range-only update; a cycle whose two-range update
-  is refused is tried again on its interrogation-only range (the reply may be
-  a multipath or false one: ``reply_refused``).  Updates are made in range
-  space (the two ranges linearised at the chosen solution, or at the
+  range and are applied as a range-only update; a cycle whose ranges disagree
+  with the other beacons' is tried on its interrogation-only range alone (the
+  reply may be a multipath or false one: ``reply_refused``).  Updates are made
+  in range space (the two ranges linearised at the chosen solution, or at the
   prediction when both solutions are plausible near a baseline or the circles
   miss each other), so a fix with poor geometry only informs the filter along
   the directions it constrains, and every range is used once.
@@ -400,10 +400,16 @@ class AuvTracker:
         ls, consistent = self._multi_fix(idx, t_em, r_i, r_l, var_i, var_l, fx, fy)
         if not consistent:
             # the cycle's ranges disagree with every other beacon's: a false or
-            # late detection in it, whatever the filter says
-            self.dropped["inconsistent"] += 1
+            # late detection in it, whatever the filter says.  The reply may be
+            # the bad part (a multipath or false one paired when the direct one
+            # was missed): the range to the beacon comes from the two
+            # interrogations alone, if the filter agrees with it well
             self._emit_fix(cyc, t_em, cf, fx, fy, r_i, r_l, bias, False, out)
             self._last_range_only = False
+            if self._range_only(cyc, idx, rg.r_i, out, fallback=True):
+                self.dropped["reply_refused"] += 1
+            else:
+                self.dropped["inconsistent"] += 1
             return
         lat = self._lateral(fx - px, fy - py, pxx, pxy, pyy, ji, jl, var_i, var_l)
         ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2,
@@ -421,12 +427,6 @@ class AuvTracker:
             self._ranges[idx] = (t_em, r_i, var_i)
             self._ranges[net.listener] = (t_em, r_l, var_l)
             self._accepted(t_em, cyc.t, fx, fy, e, out)
-            return
-        # the reply may be the bad part (a multipath or false one paired when the
-        # direct one was missed): the range to the beacon comes from the two
-        # interrogations alone
-        if self._range_only(cyc, idx, rg.r_i, out, fallback=True):
-            self.dropped["reply_refused"] += 1
             return
         self.dropped["innovation"] += 1
         rej = self._rejected
