@@ -56,3 +56,18 @@ def test_a_bad_follow_scenario_is_refused(tmp_path: Path) -> None:
     p.write_text("[mission]\nkind = \"follow\"\n")
     with pytest.raises(ConfigError, match="needs the \\[auv\\] and \\[lbl\\]"):
         load_scenario(p)
+
+
+def test_an_unrecovered_turn_is_null_in_a_valid_json_report() -> None:
+    import json
+
+    # thrusters far too weak to keep up: the turn is never recovered
+    scn = load_scenario(TURN, ["world.thrusters.fwd_max_n=20.0",
+                               "world.thrusters.rev_max_n=20.0",
+                               "scenario.max_duration_s=300.0"], seed=2)
+    r = run_scenario(scn).report
+    (turn,) = r["turns"]
+    assert turn["recovery_s"] is None
+    assert turn["kind"] == "turn" and turn["angle_deg"] == pytest.approx(90.0, abs=1.0)
+    text = json.dumps(r, allow_nan=False)  # raises on a bare NaN or Infinity
+    assert "NaN" not in text

@@ -209,3 +209,52 @@ def test_duplicates_and_out_of_order() -> None:
     assert asm.dropped["duplicate"] == 2
     assert asm.dropped["out_of_order"] == 1
     assert asm.accepted == 3
+
+
+def _true_range(net: Network, i: int) -> float:
+    return math.dist(AUV, _beacon(net, i))
+
+
+def test_a_missed_reply_still_gives_the_range_while_tracking() -> None:
+    net = _net()
+    asm = _asm(net, predictor=lambda i, t: (_true_range(net, i), 1.0))
+    t_i, _t_r, t_next = _cycle_times(net, 1, EPOCH + 10.0)
+    t_i2, _, _ = _cycle_times(net, 2, t_next)
+    assert asm.push(_ev(t_i, "I", 2)) is None
+    cyc = asm.push(_ev(t_i2, "I", 3))  # the reply between them was not heard
+    assert cyc is not None and math.isnan(cyc.t_r)
+    assert (cyc.index, cyc.t_i, cyc.t_next) == (1, t_i, t_i2)
+    # the interval gives the exact range to beacon 2 (static AUV)
+    r = 0.5 * C * (cyc.t_next - cyc.t_i - net.tau[1] - net.delta)
+    assert r == pytest.approx(_true_range(net, 1), abs=1e-3)  # epoch-sized float times
+    assert asm.cycles_no_reply == 1
+
+
+def test_a_missed_reply_gives_nothing_without_a_prediction() -> None:
+    net = _net()
+    asm = _asm(net)
+    t_i, _t_r, t_next = _cycle_times(net, 1, EPOCH + 10.0)
+    t_i2, _, _ = _cycle_times(net, 2, t_next)
+    asm.push(_ev(t_i, "I", 2))
+    assert asm.push(_ev(t_i2, "I", 3)) is None
+
+
+def test_no_reply_cycle_refused_off_the_predicted_period() -> None:
+    net = _net()
+    # the prediction puts the AUV 60 m further from beacon 2 than it is
+    asm = _asm(net, predictor=lambda i, t: (_true_range(net, i) + 60.0, 1.0))
+    t_i, _t_r, t_next = _cycle_times(net, 1, EPOCH + 10.0)
+    t_i2, _, _ = _cycle_times(net, 2, t_next)
+    asm.push(_ev(t_i, "I", 2))
+    assert asm.push(_ev(t_i2, "I", 3)) is None
+
+
+def test_a_multipath_copy_of_an_interrogation_is_not_the_next_ping() -> None:
+    net = _net()
+    asm = _asm(net, predictor=lambda i, t: (_true_range(net, i), 1.0))
+    t_i, _t_r, t_next = _cycle_times(net, 1, EPOCH + 10.0)
+    t_i2, _, _ = _cycle_times(net, 2, t_next)
+    asm.push(_ev(t_i, "I", 2))
+    assert asm.push(_ev(t_i + 0.012, "I", 2)) is None  # late copy, 12 ms
+    cyc = asm.push(_ev(t_i2, "I", 3))
+    assert cyc is not None and cyc.t_i == t_i  # measured from the direct arrival

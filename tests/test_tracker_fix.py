@@ -200,3 +200,63 @@ def test_mirror_choice_follows_the_prediction_while_tracking() -> None:
         near_baseline += mirror_err < 20.0
     assert near_baseline >= 2  # the test does exercise close mirrors
     assert tracker.counters().get("fix.reacquired", 0) == 0
+
+
+FOUR = LblNetworkParams(beacons=[[0.0, 0.0, 30.0], [400.0, 50.0, 30.0], [150.0, 400.0, 30.0],
+                                 [420.0, 380.0, 30.0]], turnaround_s=[0.1] * 4)
+
+
+def _ranges(net: Network, p: tuple[float, float], idx: list[int], noise: list[float],
+            var: float) -> list[tuple[int, float, float]]:
+    return [(i, math.dist((p[0], p[1], 10.0), (net.north[i], net.east[i], net.depth[i])) + n,
+             var) for i, n in zip(idx, noise, strict=True)]
+
+
+def test_least_squares_fix_is_exact_with_exact_ranges() -> None:
+    from zarco_runtime.tracking.fix import ls_fix
+
+    net = Network.from_params(FOUR)
+    p = (180.0, 230.0)
+    sol = ls_fix(net, _ranges(net, p, [0, 1, 2, 3], [0.0] * 4, 1.0), 10.0, p[0] + 7.0,
+                 p[1] - 5.0)
+    assert sol is not None
+    assert (sol[0], sol[1]) == pytest.approx(p, abs=1e-6)
+    assert sol[2] > 0.0 and sol[4] > 0.0 and sol[2] * sol[4] > sol[3] ** 2
+
+
+def test_a_fourth_beacon_never_makes_the_fix_worse_and_its_covariance_is_honest() -> None:
+    import numpy as np
+
+    from zarco_runtime.tracking.fix import ls_fix
+
+    net = Network.from_params(FOUR)
+    rng = np.random.default_rng(11)
+    # along the listener–beacon-4 diagonal: the pair (0, 3) alone is poor there
+    pts = [(120.0 + 5.0 * k, 110.0 + 4.5 * k) for k in range(40)]
+    e3, e4, nees = [], [], []
+    for p in pts:
+        n = rng.normal(0.0, 0.7, 4)
+        s3 = ls_fix(net, _ranges(net, p, [0, 1, 2], list(n[:3]), 0.49), 10.0, p[0], p[1])
+        s4 = ls_fix(net, _ranges(net, p, [0, 1, 2, 3], list(n), 0.49), 10.0, p[0], p[1])
+        assert s3 is not None and s4 is not None
+        e3.append(math.hypot(s3[0] - p[0], s3[1] - p[1]))
+        ex, ey = s4[0] - p[0], s4[1] - p[1]
+        e4.append(math.hypot(ex, ey))
+        det = s4[2] * s4[4] - s4[3] ** 2
+        nees.append((s4[4] * ex * ex - 2 * s4[3] * ex * ey + s4[2] * ey * ey) / det)
+    rms3 = math.sqrt(sum(e * e for e in e3) / len(e3))
+    rms4 = math.sqrt(sum(e * e for e in e4) / len(e4))
+    assert rms4 <= rms3
+    # normalised error squared: 2 on average for an honest 2-D covariance
+    assert 1.0 < sum(nees) / len(nees) < 3.5
+
+
+def test_tracker_fixes_with_four_beacons_no_worse_than_with_three() -> None:
+    def fix_rms(lbl: dict[str, object]) -> float:
+        world, _, fixes, _ = _run([[120.0, 110.0], [300.0, 270.0]], 300.0, lbl)
+        errs = [_err(world, f)[0] for f in fixes if f.accepted and not f.range_only]
+        return math.sqrt(sum(e * e for e in errs) / len(errs))
+
+    three = fix_rms({})
+    four = fix_rms({"beacons": FOUR.beacons, "turnaround_s": FOUR.turnaround_s})
+    assert four <= 1.1 * three

@@ -10,6 +10,7 @@ GPS-disciplined clock; they are a different clock from ``t``.
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass
 
 
@@ -81,7 +82,11 @@ class AuvFix:
     ``bias_m`` (already subtracted).  ``accepted``: passed the innovation gate.
     ``range_only``: a cycle on the listener's own beacon (one circle, no
     position: ``x_m``/``y_m`` are then the point of that circle nearest the
-    prediction, NaN when there is no prediction).
+    prediction, NaN when there is no prediction).  ``cov_xx_m2``,
+    ``cov_xy_m2``, ``cov_yy_m2``: covariance of (x_m, y_m) (m²; NaN when the
+    position is not determined, e.g. range-only): with the ranges to other
+    beacons heard in the last cycles, brought to this emission time, the fix
+    is their joint least-squares solution.
     """
 
     t: float
@@ -96,6 +101,9 @@ class AuvFix:
     bias_m: float
     accepted: bool
     range_only: bool = False
+    cov_xx_m2: float = math.nan
+    cov_xy_m2: float = math.nan
+    cov_yy_m2: float = math.nan
 
 
 @dataclass(slots=True)

@@ -41,7 +41,7 @@ from zarco_runtime.guidance.mission import Leg, Mission, build_legs
 from zarco_runtime.runtime import Runtime
 from zarco_runtime.supervision.local import LocalCommands
 from zarco_runtime.supervision.supervisor import Boot
-from zarco_tools.follow_report import follow_figures
+from zarco_tools.follow_report import finite_or_none, follow_figures
 from zarco_tools.hold_report import hold_figures
 from zarco_tools.scenario import Scenario
 from zarco_tools.sim_report import TrackLog, line_figures
@@ -365,7 +365,8 @@ def run_scenario(scn: Scenario, progress: ProgressFn | None = None,
         "last_thruster_command": counters.get("last_command"),
         **({"tracker": counters["tracker"]} if "tracker" in counters else {}),
     }
-    return SimResult(scn, legs, log, report, counters)
+    # JSON has no NaN: a figure that could not be computed is None
+    return SimResult(scn, legs, log, finite_or_none(report), counters)
 
 
 class StatusLine:

@@ -8,8 +8,10 @@ down; heading ψ clockwise from north)::
 at constant speed v and depth.  Guidance is line-of-sight on the current leg
 (waypoint k−1 → k): ψ_d = ψ_leg − atan(d/Δ), d the cross-track offset
 (starboard positive), Δ the look-ahead.  The next leg starts when the
-along-track distance left is R tan(|Δψ|/2), R = v/ω_max (the turn is anticipated
-so that the finite-rate turn joins the next line rather than overshooting it).
+along-track distance left is R tan(min(|Δψ|, 90°)/2), R = v/ω_max (the turn is
+anticipated so that the finite-rate turn joins the next line rather than
+overshooting it; a sharper turn, up to a reversal, starts R before the waypoint
+and the line-of-sight guidance brings the AUV onto the next line).
 After the last waypoint the AUV hovers there (``at_end = "stop"``) or keeps its
 course (``"continue"``).  Before ``start_delay_s`` it hovers at the first
 waypoint, pointing at the second.
@@ -110,6 +112,8 @@ class Auv:
         self._psi = [psi]
         self._v = [0.0]
         self._legs = [self.leg]
+        #: (grid time s, signed course change rad, + to starboard) of each leg switch
+        self._turns: list[tuple[float, float]] = []
 
     # ---------------------------------------------------- lines on the fly
 
@@ -152,10 +156,15 @@ class Auv:
             (x2, y2) = self.wps[self.leg + 1]
             turn = abs(_wrap(math.atan2(y2 - y1, x2 - x1) - psi_leg))
             radius = self.v / self.omega if self.omega > 0.0 else 0.0
-            switch = left <= radius * math.tan(min(turn, math.radians(170.0)) / 2.0)
+            switch = left <= radius * math.tan(min(turn, math.radians(90.0)) / 2.0)
         else:
             switch = left <= 0.0
         return psi_leg - math.atan(d / self.params.lookahead_m), switch
+
+    def _leg_course(self) -> float:
+        """Course of the leg being flown (rad, clockwise from north)."""
+        (x0, y0), (x1, y1) = self._leg_start, self.wps[self.leg]
+        return math.atan2(y1 - y0, x1 - x0)
 
     def _step(self, t: float) -> None:
         """Integrate one step from grid time ``t``."""
@@ -169,8 +178,10 @@ class Auv:
         psi_d, switch = self._desired(x, y)
         if switch:
             if self.leg + 1 < len(self.wps):
+                before = self._leg_course()
                 self._leg_start = self.wps[self.leg]
                 self.leg += 1
+                self._turns.append((t + dt, _wrap(self._leg_course() - before)))
                 psi_d, _ = self._desired(x, y)
             elif p.at_end == "stop":
                 self.stopped = True
@@ -214,6 +225,12 @@ class Auv:
         is where a turn begins)."""
         legs = self._legs
         return [k * self.dt for k in range(1, len(legs)) if legs[k] != legs[k - 1]]
+
+    def turn_angles(self) -> list[tuple[float, float]]:
+        """(sim time s, signed course change rad, positive to starboard) of every
+        leg switch so far: the same times as :meth:`turn_times`, with the angle
+        between the planned legs (what the AUV turns through)."""
+        return list(self._turns)
 
     def truth(self, t_s: float) -> AuvTruth:
         """The full true state at ``t_s`` ≥ 0 (heading and speed of the step

@@ -1,4 +1,4 @@
-"""Benchmark: following the AUV from the buoy's acoustic feed (issue #3).
+"""Benchmark: following the AUV from the buoy's acoustic feed (the shipped scenarios).
 
     python tests/bench/follow.py [--seeds 1 2 3]
 
@@ -33,26 +33,36 @@ SCN = ROOT / "config" / "scenarios"
 HARSH = ["lbl.p_miss=0.20", "lbl.p_false=0.05"]
 
 
-def fin(v: float) -> float | None:
+def fin(v: float | None) -> float | None:
     return round(v, 3) if isinstance(v, float) and math.isfinite(v) else None
+
+
+def _vals(reports: list[dict[str, Any]], key: str) -> list[float]:
+    return [r[key] for r in reports if r.get(key) is not None]
 
 
 def summarise(reports: list[dict[str, Any]]) -> dict[str, Any]:
     turns = [t for r in reports for t in r["turns"]]
-    rec = [t["recovery_s"] for t in turns if math.isfinite(t["recovery_s"])]
-    det = [t["detect_s"] for t in turns if math.isfinite(t["detect_s"])]
+    rec = [t["recovery_s"] for t in turns if t["recovery_s"] is not None]
+    det = [t["detect_s"] for t in turns if t["detect_s"] is not None]
+
+    def agg(key: str, fn: Any) -> float | None:
+        v = _vals(reports, key)
+        return fin(float(fn(v))) if v else None
+
     return {
-        "fix_interval_s": fin(statistics.median(r["fix_interval_s"] for r in reports)),
-        "fix_error_rms_m": fin(statistics.fmean(r["fix_error_rms_m"] for r in reports)),
-        "track_error_rms_m": fin(statistics.fmean(r["track_error_rms_m"] for r in reports)),
-        "course_error_rms_deg": fin(max(r["course_error_rms_deg"] for r in reports)),
-        "distance_median_m": fin(max(r["distance_median_m"] for r in reports)),
-        "distance_p95_m": fin(max(r["distance_p95_m"] for r in reports)),
-        "distance_max_m": fin(max(r["distance_max_m"] for r in reports)),
+        "fix_interval_s": agg("fix_interval_s", statistics.median),
+        "fix_error_rms_m": agg("fix_error_rms_m", statistics.fmean),
+        "track_error_rms_m": agg("track_error_rms_m", statistics.fmean),
+        "course_error_rms_deg": agg("course_error_rms_deg", max),
+        "distance_median_m": agg("distance_median_m", max),
+        "distance_p95_m": agg("distance_p95_m", max),
+        "distance_max_m": agg("distance_max_m", max),
         "turns": len(turns),
         "detect_s_max": fin(max(det)) if det else None,
         "recovery_s_max": fin(max(rec)) if rec else None,
         "recovery_unrecovered": len(turns) - len(rec),
+        "lost_max_s": agg("lost_max_s", max),
         "track_lost_events": sum(r["track_lost_events"] for r in reports),
     }
 
@@ -89,7 +99,7 @@ def main() -> None:
             out[name + label] = s
             print(f"{name + label:<22} {json.dumps(s)}", file=sys.stderr)
     out.update(event_timing(args.seeds[0]))
-    print(json.dumps(out))
+    print(json.dumps(out, allow_nan=False))
 
 
 if __name__ == "__main__":

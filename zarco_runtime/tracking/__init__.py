@@ -12,6 +12,7 @@ Modules, in data-flow order:
 * :mod:`.cycles` – I/R/I cycle assembly with gates and drop counters;
 * :mod:`.fix` – ranges, emission time, motion-bias correction, circle fix;
 * :mod:`.kalman` – constant-velocity Kalman filter with innovation gating;
+* :mod:`.imm` – interacting multiple models (straight, manoeuvring, turning);
 * :mod:`.rls` – recursive least squares with forgetting on the line model;
 * :mod:`.tracker` – the glue, track aging and lost declaration;
 * :mod:`.follow` – the follow-law geometry of DESIGN.md §5.

@@ -17,9 +17,14 @@ Rules, all on the listener's UTC times (s):
   it comes sooner than the AUV could possibly ping again
   (τ_i + δ + 2 r_min / c, r_min the AUV's depth offset from beacon i), which
   marks it a false or multipath detection (``impossible_timing``), or later than
-  τ_i + δ + 2 r_max / c, which means the closing ping was missed
+  τ_i + δ + 2 r_max / c, or addresses beacon i again (the AUV interrogates
+  another beacon after each reply), which means the closing ping was missed
   (cycle dropped ``missed_ping``);
 * a second ``R`` for an already answered ``I`` is a late (multipath) arrival;
+* two interrogations in a row with the reply between them missed still make a
+  cycle (``t_r`` NaN: the range to the first beacon only) when a ``predictor``
+  is given and their interval is within its window (below); an interrogation
+  of the same beacon within ``MULTIPATH_I_S`` of the last is a late copy;
 * with a ``predictor`` (the tracker's filter, once initialised) the closing
   window shrinks to P̂ ± 2(``n_sigma`` σ̂ + ``margin_m``)/c around the period
   P̂ = τ_i + δ + 2 r̂_i / c of the predicted range r̂_i (σ̂ its 1σ, m): a
@@ -61,6 +66,9 @@ DUP_EPS_S = 0.5e-6
 DUP_MEMORY = 16
 #: unanswered interrogations kept at most
 MAX_CANDIDATES = 8
+#: an interrogation of the same beacon this soon (s) after the last one is a
+#: multipath copy (copies come 2–30 ms late; the AUV pings again ≥ τ + δ later)
+MULTIPATH_I_S = 0.05
 
 
 @dataclass(slots=True)
@@ -70,7 +78,8 @@ class Cycle:
     ``index``/``beacon``: network index and wire id of the beacon interrogated;
     ``t_i``, ``t_r``, ``t_next``: UTC (s) of the interrogation, of the reply and
     of the AUV's next interrogation (addressed to ``next_beacon``) at the
-    listener; ``t``: runtime time of the closing event.
+    listener (``t_r`` NaN when the reply was not heard: the cycle then gives
+    the range to the beacon only); ``t``: runtime time of the closing event.
     """
 
     t: float
@@ -85,9 +94,9 @@ class Cycle:
 class CycleAssembler:
     """Stateful cycle assembly; feed events in arrival order with :meth:`push`."""
 
-    __slots__ = ("_cands", "_last_utc", "_open", "_recent", "_seq_next", "accepted", "cycles",
-                 "cycles_dropped", "dropped", "margin_m", "max_range_m", "n_sigma", "net",
-                 "predictor", "r_min")
+    __slots__ = ("_cands", "_last_utc", "_open", "_prev_i", "_recent", "_seq_next", "accepted",
+                 "cycles", "cycles_dropped", "cycles_no_reply", "dropped", "margin_m",
+                 "max_range_m", "n_sigma", "net", "predictor", "r_min")
 
     def __init__(self, net: Network, auv_depth_m: float, max_range_m: float,
                  sequence: list[int] | None = None,
@@ -109,6 +118,10 @@ class CycleAssembler:
         self.dropped: Counter[str] = Counter()
         self.cycles_dropped: Counter[str] = Counter()
         self.cycles = 0
+        #: cycles made of two interrogations whose reply was not heard (in ``cycles``)
+        self.cycles_no_reply = 0
+        # the last interrogation heard: (utc, network index, answered)
+        self._prev_i: tuple[float, int, bool] | None = None
         #: events that passed the validity, duplicate and order checks
         self.accepted = 0
         # unanswered interrogations: [utc, network index]
@@ -123,6 +136,7 @@ class CycleAssembler:
         with ``clock``, also the order and duplicate memory (after a time jump)."""
         self._cands.clear()
         self._open = None
+        self._prev_i = None
         if clock:
             self._recent.clear()
             self._last_utc = -math.inf
@@ -176,6 +190,12 @@ class CycleAssembler:
     def _on_interrogation(self, t: float, utc: float, idx: int) -> Cycle | None:
         cycle = None
         op = self._open
+        prev = self._prev_i
+        # a late copy of the interrogation just heard is not the AUV's next ping
+        if prev is None or prev[1] != idx or utc - prev[0] >= MULTIPATH_I_S:
+            self._prev_i = (utc, idx, False)
+            if op is None and prev is not None and not prev[2]:
+                cycle = self._no_reply_cycle(t, utc, idx, prev[0], prev[1])
         if op is not None:
             oidx, t_i, t_r, phys_lo, p_lo, p_hi = op
             dt = utc - t_i
@@ -190,7 +210,9 @@ class CycleAssembler:
                 return None
             self._open = None
             net = self.net
-            if dt > p_hi:
+            if dt > p_hi or (oidx == idx and net.n > 1):
+                # too late, or the AUV cannot ping the same beacon twice in a row:
+                # the pings between were missed
                 self.cycles_dropped["missed_ping"] += 1
             elif (self._seq_next is not None
                   and self._seq_next.get(net.ids[oidx]) != net.ids[idx]):
@@ -200,6 +222,32 @@ class CycleAssembler:
                 cycle = Cycle(t, oidx, net.ids[oidx], t_i, t_r, utc, net.ids[idx])
         self._add_candidate(utc, idx)
         return cycle
+
+    def _no_reply_cycle(self, t: float, utc: float, idx: int, t_prev: float,
+                        pidx: int) -> Cycle | None:
+        """The AUV's interrogations of ``pidx`` (at ``t_prev``) and of ``idx`` (now)
+        with the reply between them not heard: still a range to ``pidx`` when
+        the interval is the one the prediction expects (only while tracking)."""
+        net = self.net
+        if pidx == idx and net.n > 1:  # a ping in between was missed
+            return None
+        pred = self.predictor(pidx, t_prev) if self.predictor is not None else None
+        if pred is None:
+            return None
+        if (self._seq_next is not None
+                and self._seq_next.get(net.ids[pidx]) != net.ids[idx]):
+            return None
+        c = net.c
+        base = net.tau[pidx] + net.delta
+        r_hat, sigma = pred
+        half = 2.0 * (self.n_sigma * sigma + self.margin_m) / c + net.tol
+        lo = max(base + 2.0 * self.r_min[pidx] / c - net.tol, base + 2.0 * r_hat / c - half)
+        hi = min(base + 2.0 * self.max_range_m / c + net.tol, base + 2.0 * r_hat / c + half)
+        if not lo <= utc - t_prev <= hi:
+            return None
+        self.cycles += 1
+        self.cycles_no_reply += 1
+        return Cycle(t, pidx, net.ids[pidx], t_prev, math.nan, utc, net.ids[idx])
 
     def _add_candidate(self, utc: float, idx: int) -> None:
         cands = self._cands
@@ -221,6 +269,9 @@ class CycleAssembler:
                     cands.popleft()
                     self.dropped["no_reply"] += 1
                 cands.popleft()
+                prev = self._prev_i
+                if prev is not None and prev[0] == t_i and prev[1] == idx:
+                    self._prev_i = (t_i, idx, True)
                 # later copies of the same interrogation (multipath) must not pair
                 # with a late copy of the reply
                 copies = [cand for cand in cands if cand[1] == idx and cand[0] < utc]

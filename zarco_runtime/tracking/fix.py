@@ -181,3 +181,65 @@ def range_variances(net: Network, index: int, timing_sigma_s: float,
     var_i = 0.5 * ct2 + rr
     var_l = var_i if index == net.listener else 1.5 * ct2 + rr
     return var_i, var_l
+
+
+def ls_fix(net: Network, ranges: list[tuple[int, float, float]], depth_m: float, x0: float,
+           y0: float, iterations: int = 4) -> tuple[float, float, float, float, float] | None:
+    """Weighted least-squares position from 3-D ranges to several beacons.
+
+    ``ranges``: (beacon index, range m, variance m²) at one instant; Gauss–Newton
+    from (x0, y0) (NED m) on Σ (r_k − ρ_k(p))² / var_k, ρ_k the 3-D range to the
+    AUV at ``depth_m``.  Returns (x, y, Cxx, Cxy, Cyy): the position and its
+    covariance (JᵀWJ)⁻¹ at the solution (m, m²); None when the ranges leave the
+    position undetermined (fewer than two independent directions).
+    """
+    x, y = x0, y0
+    cxx = cxy = cyy = math.inf
+    for _ in range(iterations):
+        x, y, cxx, cxy, cyy, done = _gauss_newton_step(net, ranges, depth_m, x, y)
+        if math.isnan(cxx):
+            return None
+        if done:
+            break
+    return x, y, cxx, cxy, cyy
+
+
+def ls_chi2(net: Network, ranges: list[tuple[int, float, float]], depth_m: float, x: float,
+            y: float) -> float:
+    """Σ (r_k − ρ_k(x, y))² / var_k: how well a position explains the ranges."""
+    out = 0.0
+    for k, r, var in ranges:
+        rho = math.sqrt((x - net.north[k]) ** 2 + (y - net.east[k]) ** 2
+                        + (depth_m - net.depth[k]) ** 2)
+        out += (r - rho) ** 2 / var if var > 0.0 else 0.0
+    return out
+
+
+def _gauss_newton_step(net: Network, ranges: list[tuple[int, float, float]], depth_m: float,
+                       x: float, y: float
+                       ) -> tuple[float, float, float, float, float, bool]:
+    """One Gauss–Newton step of :func:`ls_fix`: (x, y, Cxx, Cxy, Cyy, converged);
+    NaN covariance when undetermined."""
+    a00 = a01 = a11 = b0 = b1 = 0.0
+    for k, r, var in ranges:
+        dx = x - net.north[k]
+        dy = y - net.east[k]
+        dz = depth_m - net.depth[k]
+        rho = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if rho < 1e-9 or var <= 0.0:
+            continue
+        jx, jy = dx / rho, dy / rho
+        w = 1.0 / var
+        res = r - rho
+        a00 += w * jx * jx
+        a01 += w * jx * jy
+        a11 += w * jy * jy
+        b0 += w * jx * res
+        b1 += w * jy * res
+    det = a00 * a11 - a01 * a01
+    if not det > 1e-9 * max(a00 * a11, 1e-300):
+        return x, y, math.nan, math.nan, math.nan, True
+    cxx, cxy, cyy = a11 / det, -a01 / det, a00 / det
+    sx = cxx * b0 + cxy * b1
+    sy = cxy * b0 + cyy * b1
+    return x + sx, y + sy, cxx, cxy, cyy, sx * sx + sy * sy < 1e-6

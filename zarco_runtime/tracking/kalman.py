@@ -95,6 +95,14 @@ class CvKalman:
         """RMS of the two position standard deviations (m)."""
         return math.sqrt(max(0.5 * (self.P[0][0] + self.P[1][1]), 0.0))
 
+    def inflate(self, pos_var: float, vel_var: float) -> None:
+        """Add position and velocity variance (m², m²/s²) on both axes."""
+        P = self.P
+        P[0][0] += pos_var
+        P[1][1] += pos_var
+        P[2][2] += vel_var
+        P[3][3] += vel_var
+
     def update(self, rows: list[tuple[float, float]], z: list[float], var: list[float],
                gate_chi2: float = math.inf, soft_chi2: float = math.inf) -> tuple[bool, float]:
         """Measurement update with 1 or 2 independent rows at the current time.
@@ -153,3 +161,4 @@ class CvKalman:
                 row[j] = v
                 P[j][k] = v
         return True, d2
+

@@ -22,6 +22,8 @@ from zarco_core.lbl import LblNetworkParams
 
 #: inputs the RLS line fit may take
 RLS_INPUTS = ("kf", "fix")
+#: motion models of the AUV filter
+MOTION_MODELS = ("imm", "cv")
 
 
 @dataclass(slots=True)
@@ -49,11 +51,37 @@ class TrackerParams:
                                 "(sound speed, residual motion bias)", min=0.0, max=100.0)
     motion_correction: bool = spec(True, "", "correct the v·P/2 motion bias of the ranges "
                                    "with the filter's velocity")
+    ls_window_s: float = spec(8.0, "s", "a fix combines the ranges to every beacon heard "
+                              "within this long (brought to its emission time along the "
+                              "filter's velocity)", min=0.0, max=120.0)
     max_gap_m: float = spec(8.0, "m", "circles further apart than this give no fix "
                             "(closer: the tangent point, flagged bad geometry)",
                             min=0.0, max=1000.0)
     accel_psd: float = spec(0.004, "m²/s³", "constant-velocity model: white-acceleration "
-                            "spectral density q", min=1e-8, max=100.0)
+                            "spectral density q (the quiet model of the IMM)",
+                            min=1e-8, max=100.0)
+    motion_model: str = spec("imm", "", "the AUV filter: 'imm' (models side by side: "
+                             "straight, manoeuvring, coordinated turn) or 'cv' (one "
+                             "constant-velocity model)", choices=list(MOTION_MODELS))
+    maneuver_accel_psd: float = spec(0.2, "m²/s³", "IMM: white-acceleration density of the "
+                                     "manoeuvring constant-velocity model",
+                                     min=1e-6, max=100.0)
+    turn_accel_psd: float = spec(0.01, "m²/s³", "IMM: white-acceleration density of the "
+                                 "coordinated-turn model", min=1e-8, max=100.0)
+    turn_rate_psd: float = spec(0.003, "rad²/s³", "IMM: turn-rate random walk of the "
+                                "coordinated-turn model", min=1e-8, max=10.0)
+    straight_sojourn_s: float = spec(60.0, "s", "IMM: mean time the AUV keeps a straight "
+                                     "line (sets the switching probability)",
+                                     min=1.0, max=1e5)
+    maneuver_sojourn_s: float = spec(10.0, "s", "IMM: mean time in the manoeuvring model",
+                                     min=0.5, max=1e4)
+    turn_sojourn_s: float = spec(20.0, "s", "IMM: mean duration of a turn", min=0.5, max=1e4)
+    maneuver_on: float = spec(0.6, "", "IMM: probability of not flying straight that "
+                              "declares a turn (the line restarts from the filter while it "
+                              "lasts)", min=0.01, max=0.99)
+    maneuver_off: float = spec(0.3, "", "IMM: probability under which the turn is over "
+                               "(the line restarts once more and is fitted on)",
+                               min=0.01, max=0.99)
     init_pos_sigma_m: float = spec(5.0, "m", "1σ position uncertainty at initialisation",
                                    min=0.01, max=1e4)
     init_vel_sigma_mps: float = spec(1.0, "m/s", "1σ velocity uncertainty at initialisation",
@@ -127,6 +155,8 @@ class TrackerParams:
                 raise ValueError(f"sequence: beacon id {b} is not in the network {ids}")
         if self.lost_after_s < self.stale_after_s:
             raise ValueError("lost_after_s: must be ≥ stale_after_s")
+        if self.maneuver_off >= self.maneuver_on:
+            raise ValueError("maneuver_off: must be below maneuver_on")
 
 
 @dataclass(frozen=True, slots=True)

@@ -3,15 +3,23 @@
 :class:`AuvTracker` glues the chain, one event at a time::
 
     AcousticEvent ─▶ clock check ─▶ CycleAssembler ─▶ cycle_ranges ─▶ motion-bias
-    correction ─▶ circle_fix (fix + mirror) ─▶ mirror choice ─▶ CvKalman (gated)
+    correction ─▶ circle_fix (fix + mirror) ─▶ mirror choice ─▶ filter (an IMM
+    of straight, manoeuvring and turning models, or one CV filter; gated)
     ─▶ LineRls (forgetting, re-centred, turn reset) ─▶ AuvTrack
 
 * Cycles on beacon i ≠ listener give a two-circle fix; cycles on the listener's
-  own beacon give one range and are applied as a range-only update.  Updates
-  are made in range space (the two ranges linearised at the chosen solution, or
-  at the prediction when both solutions are plausible near a baseline), so a
-  fix with poor geometry only informs the filter along the directions it
-  constrains.
+  own beacon, and cycles whose reply was missed (two interrogations), give one
+  range and are applied as a range-only update; a cycle whose ranges disagree
+  with the other beacons' is tried on its interrogation-only range alone (the
+  reply may be a multipath or false one: ``reply_refused``).  Updates are made
+  in range space (the two ranges linearised at the chosen solution, or at the
+  prediction when both solutions are plausible near a baseline or the circles
+  miss each other), so a fix with poor geometry only informs the filter along
+  the directions it constrains, and every range is used once.
+* The published fix (:class:`AuvFix`) is the joint least-squares position of
+  the cycle's ranges and the newest accepted range to every other beacon heard
+  within ``ls_window_s`` (carried to the emission time along the filter's
+  velocity), with its covariance: more beacons never make it worse.
 * Initialisation resolves the mirror by a vote between fixes on different
   baselines (the true position is common to both, the mirrors are not); with a
   single baseline, by the configured prior.  Once the filter runs, the
@@ -24,10 +32,14 @@
   re-initialises from the fixes (``reacquired``): this undoes a lock on the
   mirror track after crossing a baseline, or a turn the filter lost, while
   outliers never win.
-* Manoeuvres: a two-sided CUSUM on the fixes' normalised cross-course
-  innovation (a turn pushes them steadily to one side) opens up the filter's
-  covariance (``maneuver``); a CUSUM on the RLS residuals declares a turn and
-  restarts the line from the filter's state (``turns``).
+* Manoeuvres: with the IMM, the probability that the AUV is not flying
+  straight rising to ``maneuver_on`` declares a turn: the line restarts from
+  the filter at every update until it falls to ``maneuver_off`` (TURNING set
+  meanwhile and ``turning_flag_s`` after).  Besides, a two-sided CUSUM on the
+  fixes' normalised cross-course innovation (a turn pushes them steadily to
+  one side) opens up the filter's covariance (``maneuver``), and a CUSUM on the
+  RLS residuals declares a turn and restarts the line from the filter's state
+  (``turns``).
 * Aging: no accepted update for ``stale_after_s`` sets STALE; for
   ``lost_after_s``, or a predicted position σ above ``lost_sigma_m``, the track
   is declared LOST (published once, then by :meth:`AuvTracker.tick`) and the
@@ -43,9 +55,10 @@ Counters (:meth:`AuvTracker.counters`): ``event.<reason>`` for dropped events
 (see :mod:`.cycles`, plus ``clock``), ``cycle.<reason>`` for lost cycles,
 ``fix.<reason>`` for cycles that gave no accepted update (``impossible_timing``,
 ``depth``, ``no_intersection``, ``innovation``, ``range_only_uninitialised``,
-``init_pending``) and for tracker events (``maneuver``, ``reacquired``,
-``clock_resync``), ``internal`` for any unexpected exception (never raised:
-the tests assert it stays absent).
+``init_pending``, ``inconsistent``: its ranges disagree with the other
+beacons') and for tracker events (``maneuver``, ``reacquired``,
+``clock_resync``, ``reply_refused``), ``internal`` for any unexpected exception
+(never raised: the tests assert it stays absent).
 
 Pure and deterministic: no I/O, no clock reads.
 """
@@ -63,10 +76,13 @@ from zarco_runtime.tracking.fix import (
     circle_fix,
     cycle_ranges,
     horizontal_radius,
+    ls_chi2,
+    ls_fix,
     motion_bias,
     range_jacobian,
     range_variances,
 )
+from zarco_runtime.tracking.imm import Imm
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.params import Network, TrackerParams
 from zarco_runtime.tracking.rls import LineRls
@@ -78,6 +94,11 @@ CLOCK_LEAK = 1e-3
 CLOCK_RESYNC_N = 5
 #: fixes remembered for the mirror vote at (re)initialisation
 INIT_MEMORY = 16
+#: χ² by which the other beacons' ranges must prefer one mirror solution
+MIRROR_CHI2_MARGIN = 9.0
+#: cycles dropped in a row after which the prediction no longer narrows the
+#: closing window (see AuvTracker._predict_range)
+WINDOW_OFF_DROPS = 6
 
 
 class _InitEntry:
@@ -106,7 +127,16 @@ class AuvTracker:
         self.cycles = CycleAssembler(self.net, params.auv_depth_m, params.max_range_m,
                                      params.sequence, self._predict_range, 4.0,
                                      params.closing_margin_m)
-        self.kf = CvKalman(params.accel_psd)
+        self.kf: CvKalman | Imm
+        if params.motion_model == "imm":
+            self.kf = Imm([("cv", params.accel_psd, 0.0),
+                           ("cv", params.maneuver_accel_psd, 0.0),
+                           ("ct", params.turn_accel_psd, params.turn_rate_psd)],
+                          (params.straight_sojourn_s, params.maneuver_sojourn_s,
+                           params.turn_sojourn_s), (0.5, 0.25, 0.25))
+        else:
+            self.kf = CvKalman(params.accel_psd)
+        self._maneuvering = False
         self.rls = LineRls(params.rls_forgetting, params.turn_cusum_drift,
                            params.turn_cusum_threshold, params.turn_holdoff_s)
         self.dropped: Counter[str] = Counter()
@@ -136,6 +166,8 @@ class AuvTracker:
         self._last_range_only = False
         self._buoy_fault = False
         self._var = range_variances  # local alias for the hot path
+        #: newest range to each beacon: (emission UTC s, range m, variance m²)
+        self._ranges: dict[int, tuple[float, float, float]] = {}
 
     # ------------------------------------------------------------ public API
 
@@ -229,6 +261,7 @@ class AuvTracker:
             self._offset_fixed = False
             rs.clear()
             self.cycles.reset(clock=True)
+            self._ranges.clear()
             self.kf.reset()
             self.rls.initialised = False
             self._init_buf.clear()
@@ -254,9 +287,17 @@ class AuvTracker:
 
     def _predict_range(self, idx: int, t_i: float) -> tuple[float, float] | None:
         """Predicted 3-D range (m) from beacon ``idx`` to the AUV for an
-        interrogation heard at UTC ``t_i``, and its 1σ (m); None when not tracking."""
+        interrogation heard at UTC ``t_i``, and its 1σ (m); None when not
+        tracking, or when ``WINDOW_OFF_DROPS`` cycles in a row were dropped since
+        the last accepted update (the prediction may be what keeps the true
+        cycles out: without it they are assembled again, refused by the
+        filter, and the re-acquisition vote decides)."""
         kf = self.kf
         if not kf.initialised:
+            return None
+        drops = self.cycles.cycles_dropped
+        if (drops["missed_ping"] + drops["superseded"] + drops["sequence"]
+                - self._drops_at_update >= WINDOW_OFF_DROPS):
             return None
         net = self.net
         lst = net.listener
@@ -273,13 +314,15 @@ class AuvTracker:
         p = self.p
         rg = cycle_ranges(cyc, net)
         r_i, r_l = rg.r_i, rg.r_l
+        if math.isnan(r_l):  # no reply heard: the range to the beacon only
+            r_l = r_i
         if not (0.0 <= r_i <= p.max_range_m and 0.0 <= r_l <= p.max_range_m + net.d[rg.index]):
             self.dropped["impossible_timing"] += 1
             return
         idx = rg.index
         kf = self.kf
-        if idx == net.listener:
-            self._range_only(cyc, r_i, out)
+        if idx == net.listener or math.isnan(cyc.t_r):
+            self._range_only(cyc, idx, r_i, out)
             return
         depth = self.depth
         cf = circle_fix(net, idx, r_i, r_l, depth)
@@ -333,31 +376,56 @@ class AuvTracker:
             fx, fy = cf.x2, cf.y2
         else:
             fx, fy = cf.x1, cf.y1
+        # ... unless the other beacons' recent ranges tell the two apart (they do
+        # not depend on the filter, which a turn or a mirror lock may have misled)
+        by_ranges = self._mirror_by_ranges(idx, t_em, r_i, r_l, var_i, var_l, cf)
+        if by_ranges is not None:
+            fx, fy = by_ranges
         kf.predict(t_em)
         ambiguous = det > 0.0 and max(m1, m2) <= p.gate_chi2 * det
-        if ambiguous:
-            # both solutions are plausible (near the baseline): do not pick one,
-            # linearise the two ranges at the prediction (an EKF update)
+        if ambiguous or cf.gap_m > 0.0:
+            # both solutions are plausible (near the baseline), or the circles
+            # miss each other (the fix is only the point between them): do not
+            # pick one, linearise the two ranges at the prediction (an EKF update)
             lx, ly = px, py
         else:
             lx, ly = fx, fy
         ji = range_jacobian(net, idx, lx, ly, depth)
         jl = range_jacobian(net, net.listener, lx, ly, depth)
         rows = [ji, jl]
-        if lx == fx and ly == fy:
-            z = [ji[0] * fx + ji[1] * fy, jl[0] * fx + jl[1] * fy]
-        else:
-            z = [r_i - self._range3(idx, lx, ly) + ji[0] * lx + ji[1] * ly,
-                 r_l - self._range3(net.listener, lx, ly) + jl[0] * lx + jl[1] * ly]
+        # the ranges linearised at (lx, ly): r ≈ r̂(l) + J (p − l)
+        z = [r_i - self._range3(idx, lx, ly) + ji[0] * lx + ji[1] * ly,
+             r_l - self._range3(net.listener, lx, ly) + jl[0] * lx + jl[1] * ly]
+        mx, my = (cf.x2, cf.y2) if (fx, fy) == (cf.x1, cf.y1) else (cf.x1, cf.y1)
+        ls, consistent = self._multi_fix(idx, t_em, r_i, r_l, var_i, var_l, fx, fy)
+        if not consistent:
+            # the cycle's ranges disagree with every other beacon's: a false or
+            # late detection in it, whatever the filter says.  The reply may be
+            # the bad part (a multipath or false one paired when the direct one
+            # was missed): the range to the beacon comes from the two
+            # interrogations alone, if the filter agrees with it well
+            self._emit_fix(cyc, t_em, cf, fx, fy, r_i, r_l, bias, False, out)
+            self._last_range_only = False
+            if self._range_only(cyc, idx, rg.r_i, out, fallback=True):
+                self.dropped["reply_refused"] += 1
+            else:
+                self.dropped["inconsistent"] += 1
+            return
         lat = self._lateral(fx - px, fy - py, pxx, pxy, pyy, ji, jl, var_i, var_l)
         ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2,
                                 p.soft_gate_chi2)
         if lat is not None and self._maneuver(lat) and not ok:
             ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2,
                                 p.soft_gate_chi2)
-        self._emit_fix(cyc, t_em, cf, fx, fy, r_i, r_l, bias, ok, out)
+        fix = AuvFix(cyc.t, t_em, cyc.beacon, ls[0], ls[1], mx, my, r_i, r_l, bias, ok,
+                     False, ls[2], ls[3], ls[4])
+        self.last_fix = fix
+        out.append(fix)
         self._last_range_only = False
         if ok:
+            # only ranges the filter accepted take part in later fixes
+            self._ranges[idx] = (t_em, r_i, var_i)
+            self._ranges[net.listener] = (t_em, r_l, var_l)
             self._accepted(t_em, cyc.t, fx, fy, e, out)
             return
         self.dropped["innovation"] += 1
@@ -444,50 +512,166 @@ class AuvTracker:
         dz = self.depth - net.depth[idx]
         return math.sqrt(dx * dx + dy * dy + dz * dz)
 
-    def _range_only(self, cyc: Cycle, r: float, out: list[AuvFix | AuvTrack]) -> None:
-        """A cycle on the listener's own beacon: one range, an EKF update."""
+    def _range_only(self, cyc: Cycle, idx: int, r: float, out: list[AuvFix | AuvTrack],
+                    fallback: bool = False) -> bool:
+        """One range to beacon ``idx`` (a cycle on the listener's own beacon, a
+        cycle whose reply was not heard, or with ``fallback`` one whose fix was
+        refused): an EKF update at the emission time (the listener's range to
+        it predicted when it is not measured).  True when accepted; with
+        ``fallback`` a refusal is neither counted nor published."""
         kf = self.kf
         if not kf.initialised:
-            self.dropped["range_only_uninitialised"] += 1
-            return
+            if not fallback:
+                self.dropped["range_only_uninitialised"] += 1
+            return False
         net = self.net
         p = self.p
         lst = net.listener
         c = net.c
-        t_em = cyc.t_i - r / c
+        depth = self.depth
+
+        def emission(r_b: float) -> tuple[float, float]:
+            """Emission time and the listener's range for a range r_b to idx."""
+            if idx == lst:
+                return cyc.t_i - r_b / c, r_b
+            x, y, _, _, _ = kf.predicted(cyc.t_i)
+            r_l = self._range3(lst, x, y)
+            x, y, _, _, _ = kf.predicted(cyc.t_i - r_l / c)
+            r_l = self._range3(lst, x, y)
+            return cyc.t_i - r_l / c, r_l
+
+        t_em, r_l = emission(r)
         px, py, _, _, _ = kf.predicted(t_em)
         bias = 0.0
         if p.motion_correction:
-            bias = motion_bias(net, lst, r, px, py, self.depth, kf.x[2], kf.x[3])
+            bias = motion_bias(net, idx, r, px, py, depth, kf.x[2], kf.x[3])
             r -= bias
-            t_em = cyc.t_i - r / c
+            t_em, r_l = emission(r)
             px, py, _, _, _ = kf.predicted(t_em)
-        dz = self.depth - net.depth[lst]
+        dz = depth - net.depth[idx]
         if horizontal_radius(r, dz) < -1.0:
-            self.dropped["depth"] += 1
-            return
+            if not fallback:
+                self.dropped["depth"] += 1
+            return False
         kf.predict(t_em)
-        dx, dy = px - net.north[lst], py - net.east[lst]
+        dx, dy = px - net.north[idx], py - net.east[idx]
         r_hat = math.sqrt(dx * dx + dy * dy + dz * dz)
-        j = range_jacobian(net, lst, px, py, self.depth)
-        var_i, _ = self._var(net, lst, p.timing_sigma_s, p.range_sigma_m)
+        j = range_jacobian(net, idx, px, py, depth)
+        var_i, _ = self._var(net, idx, p.timing_sigma_s, p.range_sigma_m)
         z = [r - r_hat + j[0] * px + j[1] * py]
-        ok, _d2 = kf.update([j], z, [var_i], p.gate_chi2, p.soft_gate_chi2)
+        # a fallback must agree well: it only replaces a reply, not the filter's doubt
+        gate = p.soft_gate_chi2 if fallback else p.gate_chi2
+        ok, _d2 = kf.update([j], z, [var_i], gate, p.soft_gate_chi2)
         # the point of the range circle nearest the prediction, for the record
         rho = max(horizontal_radius(r, dz), 0.0)
         hd = math.hypot(dx, dy)
         if hd > 1e-9:
-            cx, cy = net.north[lst] + dx / hd * rho, net.east[lst] + dy / hd * rho
+            cx, cy = net.north[idx] + dx / hd * rho, net.east[idx] + dy / hd * rho
         else:
             cx, cy = px, py
-        fix = AuvFix(cyc.t, t_em, cyc.beacon, cx, cy, cx, cy, r, r, bias, ok, True)
+        if not ok and fallback:
+            return False
+        if ok:
+            self._ranges[idx] = (t_em, r, var_i)
+        fix = AuvFix(cyc.t, t_em, cyc.beacon, cx, cy, cx, cy, r, r_l, bias, ok, True)
         self.last_fix = fix
         out.append(fix)
         if not ok:
             self.dropped["innovation"] += 1
-            return
+            return False
         self._last_range_only = True
         self._accepted(t_em, cyc.t, cx, cy, var_i, out)
+        return True
+
+    def _other_ranges(self, idx: int, t_em: float, x: float, y: float
+                      ) -> list[tuple[int, float, float]]:
+        """The newest accepted range to every beacon but ``idx`` and the listener,
+        heard within ``ls_window_s`` before ``t_em``, carried to ``t_em`` along
+        the filter's velocity (directions taken at (x, y)), its variance grown
+        by the velocity's uncertainty and the manoeuvring model's acceleration."""
+        kf = self.kf
+        if not kf.initialised:
+            return []
+        net = self.net
+        p = self.p
+        lst = net.listener
+        vx, vy = kf.x[2], kf.x[3]
+        P = kf.P
+        out = []
+        for k, (tk, rk, vk) in self._ranges.items():
+            dt = t_em - tk
+            if k in (idx, lst) or not 0.0 <= dt <= p.ls_window_s:
+                continue
+            jx, jy = range_jacobian(net, k, x, y, self.depth)
+            pv = jx * jx * P[2][2] + 2.0 * jx * jy * P[2][3] + jy * jy * P[3][3]
+            grow = dt * dt * pv + p.maneuver_accel_psd * dt ** 3 / 3.0
+            out.append((k, rk + (jx * vx + jy * vy) * dt, vk + grow))
+        return out
+
+    def _mirror_by_ranges(self, idx: int, t_em: float, r_i: float, r_l: float,
+                          var_i: float, var_l: float, cf: CircleFix
+                          ) -> tuple[float, float] | None:
+        """The two-circle solution the other beacons' ranges choose: the joint
+        least squares started from each solution, the one that explains all
+        ranges (χ² within ``gate_chi2`` + 2 per extra range) clearly better than
+        the other (by ``MIRROR_CHI2_MARGIN``) or both converging to one point;
+        None when they cannot tell (no other beacon, or both fit)."""
+        if math.hypot(cf.x1 - cf.x2, cf.y1 - cf.y2) < 1.0:
+            return None
+        net = self.net
+        mx, my = 0.5 * (cf.x1 + cf.x2), 0.5 * (cf.y1 + cf.y2)
+        others = self._other_ranges(idx, t_em, mx, my)
+        if not others:
+            return None
+        ranges = [(idx, r_i, var_i), (net.listener, r_l, var_l), *others]
+        depth = self.depth
+        fits = []
+        for cx, cy in ((cf.x1, cf.y1), (cf.x2, cf.y2)):
+            sol = ls_fix(net, ranges, depth, cx, cy)
+            if sol is None:
+                return None
+            fits.append((ls_chi2(net, ranges, depth, sol[0], sol[1]), sol[0], sol[1]))
+        (c1, x1, y1), (c2, x2, y2) = fits
+        best = fits[0] if c1 <= c2 else fits[1]
+        if best[0] > self.p.gate_chi2 + 2.0 * len(others):
+            return None
+        if abs(c1 - c2) < MIRROR_CHI2_MARGIN and math.hypot(x1 - x2, y1 - y2) > 1.0:
+            return None
+        bx, by = best[1], best[2]
+        if (cf.x1 - bx) ** 2 + (cf.y1 - by) ** 2 <= (cf.x2 - bx) ** 2 + (cf.y2 - by) ** 2:
+            return cf.x1, cf.y1
+        return cf.x2, cf.y2
+
+    def _multi_fix(self, idx: int, t_em: float, r_i: float, r_l: float, var_i: float,
+                   var_l: float, fx: float, fy: float
+                   ) -> tuple[tuple[float, float, float, float, float], bool]:
+        """The cycle's fix with every beacon heard within ``ls_window_s``: each
+        older range brought to ``t_em`` along the filter's velocity (its
+        variance grown by the velocity's uncertainty and the manoeuvring
+        model's acceleration over the interval), then the joint least-squares
+        position from the chosen two-circle solution (fx, fy).  Returns
+        (x, y, Cxx, Cxy, Cyy); the two-circle solution (and its covariance) when
+        no other beacon was heard or the ranges do not agree on one position
+        (χ² of the residuals beyond ``gate_chi2`` + 2 per extra range), and
+        whether they agree (True with no other beacon).  Only ranges of
+        accepted cycles are remembered for later fixes."""
+        net = self.net
+        p = self.p
+        depth = self.depth
+        ranges = [(idx, r_i, var_i), (net.listener, r_l, var_l),
+                  *self._other_ranges(idx, t_em, fx, fy)]
+        two = ls_fix(net, ranges[:2], depth, fx, fy, 1)
+        c2 = (two[2], two[3], two[4]) if two is not None else (math.nan,) * 3
+        if len(ranges) > 2:
+            # the joint solution, unless the ranges disagree (a false or late
+            # detection in this cycle): then the cycle's own pair
+            sol = ls_fix(net, ranges, depth, fx, fy)
+            if sol is not None:
+                if ls_chi2(net, ranges, depth, sol[0], sol[1]) <= (
+                        p.gate_chi2 + 2.0 * (len(ranges) - 2)):
+                    return sol, True
+                return (fx, fy, *c2), False
+        return (fx, fy, *c2), True
 
     def _lateral(self, ex: float, ey: float, pxx: float, pxy: float, pyy: float,
                  ji: tuple[float, float], jl: tuple[float, float], var_i: float,
@@ -532,13 +716,7 @@ class AuvTracker:
         """Add the turn covariance to the filter and (optionally) mark the line
         for a restart."""
         p = self.p
-        P = self.kf.P
-        dv = p.turn_vel_sigma_mps ** 2
-        dp = p.turn_pos_sigma_m ** 2
-        P[0][0] += dp
-        P[1][1] += dp
-        P[2][2] += dv
-        P[3][3] += dv
+        self.kf.inflate(p.turn_pos_sigma_m ** 2, p.turn_vel_sigma_mps ** 2)
         if restart_line:
             self._line_restart = True
 
@@ -572,8 +750,8 @@ class AuvTracker:
         another baseline votes for the solution it has a candidate near (within
         ``init_agree_m`` + ``max_speed_mps`` × their time apart) when it is near
         only one of them; a solution needs more than twice the other's votes.
-        With a single baseline the prior decides (and with ``reinit``,
-        ``reacquire_after`` fixes must agree with the choice).
+        With a single baseline the prior decides, and ``reacquire_after`` fixes
+        must agree with the choice.
         Returns (chosen position, the recent fixes) or None (undecided)."""
         if not buf:
             return None
@@ -588,12 +766,13 @@ class AuvTracker:
         if baselines <= 1:
             px, py = self._prior
             chosen = c1 if math.dist(c1, (px, py)) <= math.dist(c2, (px, py)) else c2
-            if reinit:
-                agree = sum(1 for e in recent if min(
-                    math.dist((e.cf.x1, e.cf.y1), chosen), math.dist((e.cf.x2, e.cf.y2), chosen))
-                    <= p.init_agree_m + p.max_speed_mps * abs(last.t - e.t))
-                if agree < p.reacquire_after:
-                    return None
+            # the prior only picks the side; ``reacquire_after`` fixes must agree
+            # (a cycle mis-assembled from missed pings gives a fix far off)
+            agree = sum(1 for e in recent if min(
+                math.dist((e.cf.x1, e.cf.y1), chosen), math.dist((e.cf.x2, e.cf.y2), chosen))
+                <= p.init_agree_m + p.max_speed_mps * abs(last.t - e.t))
+            if agree < p.reacquire_after:
+                return None
         else:
             v1 = v2 = 0
             near_any = False
@@ -646,8 +825,11 @@ class AuvTracker:
             ji = range_jacobian(net, e.idx, q[0], q[1], self.depth)
             jl = range_jacobian(net, net.listener, q[0], q[1], self.depth)
             var_i, var_l = self._var(net, e.idx, p.timing_sigma_s, p.range_sigma_m)
-            kf.update([ji, jl], [ji[0] * q[0] + ji[1] * q[1], jl[0] * q[0] + jl[1] * q[1]],
-                      [var_i, var_l])
+            kf.update([ji, jl], [e.r_i - self._range3(e.idx, q[0], q[1]) + ji[0] * q[0]
+                                 + ji[1] * q[1],
+                                 e.r_l - self._range3(net.listener, q[0], q[1]) + jl[0] * q[0]
+                                 + jl[1] * q[1]], [var_i, var_l])
+        self._maneuvering = False
         if self._ever_init:
             self._reacquired_utc = last.t
         self._ever_init = True
@@ -664,6 +846,8 @@ class AuvTracker:
         rls = self.rls
         self.fixes_accepted += 1
         self._last_update_utc = t_em
+        drops = self.cycles.cycles_dropped
+        self._drops_at_update = drops["missed_ping"] + drops["superseded"] + drops["sequence"]
         self._lost = False
         P = kf.P
         floor = p.rls_sigma_floor_m
@@ -684,16 +868,40 @@ class AuvTracker:
                 # a turn: open up the filter (it follows the new course faster)
                 # and restart the line from the filter with that covariance
                 self._inflate()
-            if self._line_restart:
+            # the IMM's manoeuvring model: restart the line from the filter at
+            # every update while it dominates, and once more when it ends
+            state = self._imm_state()
+            if state or self._line_restart:
+                if state == "enter" or not state:
+                    self.turns += 1
                 self._line_restart = False
-                self.turns += 1
                 self._turn_utc = t_em
+                P = kf.P
                 rls.reset(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], 0.5 * (P[0][0] + P[1][1]),
                           0.5 * (P[2][2] + P[3][3]), 0.5 * (P[0][2] + P[1][3]),
                           max(kf.pos_sigma(), floor))
         track = self._build(t)
         self.last_track = track
         out.append(track)
+
+    def _imm_state(self) -> str:
+        """The IMM's manoeuvre state after an update: ``enter`` (the manoeuvring
+        model's probability rose to ``maneuver_on``), ``during``, ``exit`` (it
+        fell to ``maneuver_off``), or "" (straight, or a single-model filter)."""
+        kf = self.kf
+        if not isinstance(kf, Imm):
+            return ""
+        mu = kf.maneuver_probability
+        p = self.p
+        if not self._maneuvering:
+            if mu >= p.maneuver_on:
+                self._maneuvering = True
+                return "enter"
+            return ""
+        if mu <= p.maneuver_off:
+            self._maneuvering = False
+            return "exit"
+        return "during"
 
     def _flags(self, age: float) -> int:
         p = self.p

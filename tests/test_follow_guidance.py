@@ -1,0 +1,154 @@
+"""The follow guidance: line of sight to the AUV, catch-up speed, which estimate
+it follows, holding above a still AUV."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from zarco_core.auv_messages import AuvTrack, TrackFlags
+from zarco_runtime.guidance.follow import FollowGuidance, FollowSettings, target_now
+
+VALID = int(TrackFlags.INITIALISED | TrackFlags.LINE_VALID)
+
+
+def _track(x: float = 0.0, y: float = 0.0, vx: float = 1.0, vy: float = 0.0,
+           flags: int = VALID, kf: tuple[float, float, float, float] | None = None,
+           sv: float = 0.05, t: float = 100.0) -> AuvTrack:
+    """A track at runtime time ``t`` (origin t0 = t): the line through (x, y)
+    with (vx, vy), the filter at ``kf`` (default: on the line)."""
+    kx, ky, kvx, kvy = kf if kf is not None else (x, y, vx, vy)
+    v2 = sv * sv
+    cov = (1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, v2, 0, 0, 0, 0, v2)
+    v = math.hypot(vx, vy)
+    return AuvTrack(t, x, y, vx, vy, math.atan2(vy, vx), v, 0.0, cov, t, 0.0, 0.5, flags,
+                    False, kx, ky, kvx, kvy, 0.5)
+
+
+def _moving(g: FollowGuidance, tr: AuvTrack, at: tuple[float, float] | None = None) -> None:
+    g.update(tr, tr.t, *(at or (tr.x0_m, tr.y0_m)))
+    assert g.moving
+
+
+def test_on_the_auv_the_leg_is_its_course_at_its_speed() -> None:
+    g = FollowGuidance(FollowSettings())
+    tr = _track(vx=0.0, vy=0.8)  # heading east
+    _moving(g, tr)
+    st = g.update(tr, tr.t, 0.0, 0.0)
+    assert st.mode == "follow" and st.leg is not None
+    assert st.leg.course_rad == pytest.approx(math.pi / 2)
+    assert st.speed_ref_mps == pytest.approx(0.8)
+    assert st.leg.project(0.0, 0.0)[1] == pytest.approx(0.0, abs=1e-9)  # on its leg
+
+
+def test_behind_it_speeds_up_ahead_it_slows_down() -> None:
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    tr = _track(vx=0.8)
+    _moving(g, tr)
+    behind = g.update(tr, tr.t, -2.0, 0.0)
+    assert behind.along_error_m == pytest.approx(2.0)
+    assert behind.speed_ref_mps == pytest.approx(0.8 + 2.0 / cfg.catchup_tau_s)
+    assert g.update(tr, tr.t, -30.0, 0.0).speed_ref_mps == cfg.max_speed_mps
+    g2 = FollowGuidance(cfg)
+    _moving(g2, tr)
+    ahead = g2.update(tr, tr.t, 2.0, 0.0)
+    assert ahead.speed_ref_mps == pytest.approx(0.8 - 2.0 / cfg.catchup_tau_s)
+    # far ahead: as slow as steering allows, and no reverse thrust
+    far = g2.update(tr, tr.t, 20.0, 0.0)
+    assert far.speed_ref_mps == cfg.min_speed_mps and far.along_error_m == 0.0
+
+
+def test_to_starboard_it_converges_to_port_at_the_line_of_sight_angle() -> None:
+    cfg = FollowSettings(max_turn_rate_dps=360.0)
+    g = FollowGuidance(cfg)
+    tr = _track(vx=1.0)  # heading north
+    _moving(g, tr, (0.0, 3.0))
+    st = g.update(tr, tr.t + 1.0, 0.0, 3.0)  # 3 m east: to starboard, level with it
+    assert st.d_m == pytest.approx(3.0)
+    assert st.leg is not None
+    # the AUV is now 1 m north, so the boat is 1 m behind: it aims Δ ahead of
+    # its own projection on the AUV's track, course atan2(−3, Δ) — to port
+    assert st.leg.course_rad == pytest.approx(math.atan2(-3.0, cfg.lookahead_m))
+
+
+def test_the_leg_turns_no_faster_than_the_boat() -> None:
+    cfg = FollowSettings(max_turn_rate_dps=20.0)
+    g = FollowGuidance(cfg)
+    north = _track(vx=1.0)
+    _moving(g, north)
+    g.update(north, 100.0, 0.0, 0.0)
+    east = _track(vx=0.0, vy=1.0, flags=VALID, t=100.0)
+    st = g.update(east, 100.5, 0.0, 0.0)  # the estimate swung 90° in 0.5 s
+    assert st.leg is not None
+    assert abs(st.leg.course_rad) == pytest.approx(math.radians(10.0), abs=1e-6)
+
+
+def test_follows_the_filter_when_the_line_disagrees_or_is_turning() -> None:
+    cfg = FollowSettings()
+    line = _track(vx=1.0, kf=(0.5, 0.3, 0.98, 0.05))
+    assert target_now(line, 100.0, cfg.line_gate_m, math.radians(20.0)).source == "line"
+    swung = _track(vx=1.0, kf=(0.5, 0.3, 0.7, 0.7))  # the filter sees a 45° turn
+    tg = target_now(swung, 100.0, cfg.line_gate_m, math.radians(20.0))
+    assert tg.source == "kf" and (tg.vx, tg.vy) == (0.7, 0.7)
+    turning = _track(vx=1.0, flags=VALID | int(TrackFlags.TURNING))
+    assert target_now(turning, 100.0, cfg.line_gate_m).source == "kf"
+    # the position is always the filter's, carried forward to now
+    tg = target_now(line, 102.0, cfg.line_gate_m, math.radians(20.0))
+    assert (tg.x, tg.y) == pytest.approx((0.5 + 2.0, 0.3))
+
+
+def test_keeps_above_a_still_auv_then_follows_when_it_moves_and_keeps_through_a_turn() -> None:
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    unsettled = _track(x=10.0, y=5.0, vx=0.04, vy=0.0, sv=0.03,
+                       flags=int(TrackFlags.INITIALISED))
+    assert g.update(unsettled, 99.0, 0.0, 0.0).leg is None  # no settled track: stay
+    still = _track(x=10.0, y=5.0, vx=0.04, vy=0.0, sv=0.03)
+    st = g.update(still, 100.0, 0.0, 0.0)
+    assert not g.moving and st.reason == "above a still AUV"
+    assert st.leg is not None and st.leg.course_rad == pytest.approx(math.atan2(5.0, 10.0))
+    far = math.hypot(10.0, 5.0) / cfg.catchup_tau_s
+    assert st.speed_ref_mps == pytest.approx(min(cfg.max_speed_mps, far))
+    assert g.update(still, 101.0, 10.5, 5.5).leg is None  # within the hold radius: drift
+    going = _track(x=10.0, y=5.0, vx=0.8, vy=0.0, sv=0.2)
+    g.update(going, 102.0, 9.0, 5.0)
+    assert g.moving
+    # in a turn the line's uncertainty grows: that is not a stop
+    turning = _track(x=12.0, y=5.0, vx=0.5, vy=0.5, sv=0.6,
+                     flags=VALID | int(TrackFlags.TURNING))
+    g.update(turning, 103.0, 11.0, 5.0)
+    assert g.moving
+    stopped = _track(x=14.0, y=5.0, vx=0.03, vy=0.0, sv=0.05)
+    g.update(stopped, 110.0, 14.0, 5.0)
+    assert not g.moving
+
+
+def test_a_lost_track_holds_where_the_boat_is() -> None:
+    g = FollowGuidance(FollowSettings())
+    tr = _track(vx=1.0)
+    assert g.update(None, 99.0, 0.0, 0.0).leg is None  # nothing to hold to yet
+    _moving(g, tr)
+    lost = AuvTrack(*[getattr(tr, f) for f in tr.__dataclass_fields__][:13], True,
+                    *[getattr(tr, f) for f in tr.__dataclass_fields__][14:])
+    st = g.update(lost, 100.5, 3.0, 4.0)
+    assert st.mode == "hold" and "lost" in st.reason
+    assert g.hold == (3.0, 4.0)
+
+
+def test_a_reversal_is_steered_as_a_turn_not_as_a_heading_error_of_180_degrees() -> None:
+    cfg = FollowSettings(max_turn_rate_dps=360.0)
+    g = FollowGuidance(cfg)
+    courses = []
+    for k in range(20):  # the boat runs north at 1 m/s ...
+        t = 100.0 + 0.1 * k
+        g.update(_track(x=0.1 * k + 2.0, vx=1.0, t=t), t, 0.1 * k, 0.0)
+    south = _track(x=-10.0, vx=-1.0, t=102.0)  # ... and the AUV is now behind, southbound
+    for k in range(3):
+        t = 102.0 + 0.1 * k
+        st = g.update(south, t, 2.0 + 0.1 * k, 0.0)
+        assert st.leg is not None
+        courses.append(st.leg.course_rad)
+    # the leg leads the boat's course over ground (north) by at most 90°
+    assert all(abs(c) <= math.pi / 2 + 1e-9 for c in courses)
