@@ -83,7 +83,7 @@ def test_integral_frozen_when_yaw_saturates_and_outside_window() -> None:
 
 def test_speed_feedforward_matches_damping() -> None:
     c = LineController(VM, CTL, VM.thruster_lag_s, DT)
-    # 25 u + 82 u² at 1 m/s (DESIGN.md §4)
+    # 25 u + 82 u² at 1 m/s (zarco_core/vessel.py)
     assert c.feedforward_n(1.0) == pytest.approx(107.0)
 
 

@@ -1,5 +1,5 @@
 """Navigation EKF, unit level: geodesy, settings, interface, measurement handling,
-time of validity, gating, speed (issue 5).  Simulator-driven figures are in
+time of validity, gating, speed.  Simulator-driven figures are in
 ``test_ekf_sim.py``, the real captures in ``test_ekf_real.py``."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Navigation EKF over real receiver captures (tests/data/gpsd-logs, from GPSD's
-regression suite), through the real parsers, and ``zarco navreport`` (issue 5).
+regression suite), through the real parsers, and ``zarco navreport``.
 
 * hemi.log (Hemisphere, GGA + HDT + VTG + ZDA): a static antenna; most of the
   capture has no fix (empty HDT, GGA with zero satellites, VTG mode N), then

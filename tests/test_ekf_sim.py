@@ -1,4 +1,4 @@
-"""Navigation EKF against the simulator's truth (issue 5 figures at CI size).
+"""Navigation EKF against the simulator's truth (its figures at CI size).
 
 Every run drives :class:`drivers.sim.world.SimWorld` through the real NMEA
 framer and parsers (``zarco_tools.ekf_eval``); the boat follows the

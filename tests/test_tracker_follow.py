@@ -1,4 +1,4 @@
-"""Follow-law geometry (DESIGN.md §5): signs of d and s, h_AUV, s_AUV(t)."""
+"""Follow-law geometry (paper VI): signs of d and s, h_AUV, s_AUV(t)."""
 
 from __future__ import annotations
 
@@ -96,7 +96,7 @@ def test_still_auv_has_no_line() -> None:
 
 
 def test_drag_feedforward_matches_the_vessel_model() -> None:
-    # DESIGN.md §4: 250 N holds about 1.60 m/s
+    # the vessel model: 250 N holds about 1.60 m/s
     assert drag_feedforward_n(1.6, -25.0, -82.0) == pytest.approx(250.0, rel=0.01)
     assert drag_feedforward_n(0.0, -25.0, -82.0) == 0.0
     assert drag_feedforward_n(-0.5, -25.0, -82.0) < 0.0

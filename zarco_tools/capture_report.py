@@ -1,4 +1,4 @@
-"""What the navigation EKF estimates from a recorded NMEA capture (issue 5).
+"""What the navigation EKF estimates from a recorded NMEA capture.
 
 ``zarco navreport LOG [LOG ...]`` and :func:`capture_report`: a capture (GPSD's
 regression logs, or one from the boat) goes through the drivers' own path —

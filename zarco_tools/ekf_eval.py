@@ -1,4 +1,4 @@
-"""Evaluate the navigation EKF against the simulator's truth (issue 5 figures).
+"""Evaluate the navigation EKF against the simulator's truth.
 
     python -m zarco_tools.ekf_eval [--seeds 1 2 3] [--quick]
 
@@ -16,7 +16,7 @@ degrees (wrapped), and the normalised estimation error squared (NEES) of
 (x, y, vn, ve, ψ) with the filter's own covariance.
 
 Figures (:func:`figures`): ``position_rms_*`` horizontal; the float one with
-σ 0.3 m white per axis as the issue states it, ``*_float_drift_m`` with the
+σ 0.3 m white per axis (the receiver's specification), ``*_float_drift_m`` with the
 simulator's own drifting float offset (0.2 m/axis, τ 60 s) added, which no
 estimator can see (``gps_rms_*``: the raw fixes over the same window).
 Heading RMS over the whole rectangle from 10 s: ``heading_rms_deg`` without
@@ -64,7 +64,7 @@ from zarco_runtime.settings import DEFAULT_TABLE_F, DEFAULT_TABLE_U
 
 #: the paper's rectangle (Fig. 4), counter-clockwise, NED metres
 RECTANGLE = ((0.0, 0.0), (100.0, 0.0), (100.0, -50.0), (0.0, -50.0), (0.0, 0.0))
-#: surge resistance of the Zarco model (N) at speed u: 25 u + 82 u² (DESIGN.md §4)
+#: surge resistance of the Zarco model (N) at speed u: 25 u + 82 u² (zarco_core/vessel.py)
 DRAG_LIN, DRAG_QUAD = 25.0, 82.0
 B_M = 0.38
 
@@ -329,12 +329,12 @@ def fixed_case(seed: int) -> Case:
 
 def float_case(seed: int) -> Case:
     """RTK float with the simulator's drifting float offset (0.2 m per axis, τ 60 s)
-    on top of the white σ 0.3 m: harsher than the issue's σ 0.3 m."""
+    on top of the white σ 0.3 m: harsher than a white σ 0.3 m alone."""
     return Case(name="rtk_float", seed=seed, fix="rtk_float")
 
 
 def float_white_case(seed: int) -> Case:
-    """RTK float as the issue states it: σ 0.3 m per axis, no drifting offset."""
+    """RTK float as the receiver specifies it: σ 0.3 m per axis, no drifting offset."""
     return Case(name="rtk_float_white", seed=seed, fix="rtk_float", float_bias_m=0.0)
 
 
@@ -396,7 +396,7 @@ def _mean(xs: list[float]) -> float:
 
 
 def figures(seeds: list[int], quick: bool = False) -> dict[str, Any]:
-    """The issue's figures: RMS averaged over ``seeds``, outage/jump errors worst-case."""
+    """The figures: RMS averaged over ``seeds``, outage/jump errors worst-case."""
     out: dict[str, Any] = {"bench": "navigation_ekf", "seeds": seeds}
     fixed = [run(fixed_case(s)) for s in seeds]
     flt = [run(float_white_case(s)) for s in seeds]

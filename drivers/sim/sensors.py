@@ -11,7 +11,7 @@ mode or a sentence list never shifts the noise of later epochs.
   own rates.
 * :class:`SimCompass`: HDG (magnetic, with variation), ROT, XDR pitch/roll.
 * :class:`SimThrusterController`: the ``$PZTHR`` watchdog and ``$PZTHS`` status
-  (DESIGN.md §7).
+  (docs/protocols.md).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from zarco_core.localgeo import FastLocalFrame
 
 #: metres per second in one knot (1852 m per hour)
 KNOT_MPS = 1852.0 / 3600.0
-#: DESIGN.md §7: the thruster controller stops when no valid $PZTHR came for this long (s)
+#: docs/protocols.md: the thruster controller stops when no valid $PZTHR came for this long (s)
 WATCHDOG_S = 0.5
 
 #: GGA quality indicator of each fix mode (NMEA 0183: 4 RTK fixed, 5 RTK float)
@@ -316,7 +316,7 @@ class SimCompass:
 
 
 class SimThrusterController:
-    """The thruster controller board as a pure state machine (DESIGN.md §7).
+    """The thruster controller board as a pure state machine (docs/protocols.md).
 
     :meth:`on_command` is called for each valid ``$PZTHR``; commands are
     clamped to −100..100.  :meth:`outputs` returns the commands being applied:

@@ -1,4 +1,4 @@
-"""Line-tracking and speed control (paper III.B, DESIGN.md §5), as pure objects.
+"""Line-tracking and speed control (paper III.B), as pure objects.
 
 Steering, in the paper's arctan anti-windup form:
 

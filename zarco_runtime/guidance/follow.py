@@ -1,4 +1,4 @@
-"""Follow the AUV (paper VI, DESIGN.md §5): guidance from the AUV's estimated track.
+"""Follow the AUV (paper VI): guidance from the AUV's estimated track.
 
 The target is the AUV's position now: the tracker's filter position (which
 follows a turn within a fix or two) carried forward to now with a velocity

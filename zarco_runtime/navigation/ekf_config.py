@@ -5,7 +5,7 @@ unit, its doc and its range; :func:`zarco_core.config.build` validates a
 TOML table against this dataclass (the lead hooks it in as
 ``[navigation.ekf]`` or similar).  Angles are degrees at this edge (``_deg``,
 ``_dps`` in the names), the filter converts to radians.  Defaults are the Zarco
-values of DESIGN.md §4 (sensor noise) and §4 (vessel model, for the sideslip).
+sensor noise of the vessel's instruments and the vessel model (for the sideslip).
 
 Noise densities are given per √s (random walks): a value q means the state's
 standard deviation grows by q·√t over t seconds without measurements.
@@ -80,7 +80,7 @@ class EkfSettings:
                                            "HDT/THS is an unbiased true heading (dual-antenna "
                                            "GNSS); any other heading is a compass, with a bias")
     compass_bias_sigma_deg: float = spec(3.0, "deg", "1σ prior of the compass bias (residual "
-                                         "after calibration, DESIGN.md §4: 1–3°)", min=0.0,
+                                         "after calibration, 1–3°)", min=0.0,
                                          max=45.0)
     compass_bias_walk_deg: float = spec(0.005, "deg/√s", "random walk of the compass bias",
                                         min=0.0, max=10.0)
@@ -89,7 +89,7 @@ class EkfSettings:
     sigma_rot_dps: float = spec(0.1, "deg/s", "1σ white noise of the rate of turn (ROT)",
                                 min=1e-4, max=100.0)
     gyro_bias_sigma_dps: float = spec(1.0, "deg/s", "1σ prior of the gyro bias (turn-on "
-                                      "bias ≈ 0.5°/s, DESIGN.md §4)", min=0.0, max=100.0)
+                                      "bias ≈ 0.5°/s)", min=0.0, max=100.0)
     gyro_bias_walk_dps: float = spec(0.002, "deg/s/√s", "random walk of the gyro bias",
                                      min=0.0, max=10.0)
     yaw_accel_walk_dps: float = spec(10.0, "deg/s/√s", "random forcing of the yaw rate "
@@ -107,7 +107,7 @@ class EkfSettings:
     yaw_damping_quad: float = spec(-250.0, "N m s²", "quadratic yaw damping N_|r|r of the "
                                    "hull for the prediction (the runtime's [vessel] model, "
                                    "which control designs its gains on, is linear in yaw; "
-                                   "DESIGN.md §4: −250)", min=-1e5, max=0.0)
+                                   "the vessel model: −250)", min=-1e5, max=0.0)
     surge_noise_mps: float = spec(0.07, "m/s/√s", "random forcing of the surge speed about "
                                   "the model's (gusts, chop: 5 N on Zarco ≈ 0.026 m/s about "
                                   "a 0.26 s surge time constant)", min=1e-4, max=10.0)
@@ -174,7 +174,7 @@ class EkfSettings:
     estimate_current: bool = spec(True, "", "estimate a constant water current (observable "
                                   "from the crab angle over different headings)")
     current_sigma_mps: float = spec(0.3, "m/s", "1σ prior of each current component "
-                                    "(DESIGN.md §4: 0–0.5 m/s)", min=0.0, max=5.0)
+                                    "(0–0.5 m/s)", min=0.0, max=5.0)
     current_walk_mps: float = spec(0.001, "m/s/√s", "random walk of the current", min=0.0,
                                    max=1.0)
     course_init_speed_mps: float = spec(0.5, "m/s", "without any heading sensor, initialise "

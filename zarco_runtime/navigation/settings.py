@@ -20,7 +20,7 @@ class Navigation:
     accel_psd: float = spec(0.02, "m²/s³", "acceleration noise density of the "
                             "constant-velocity position filter", min=1e-6, max=100.0)
     sog_sigma_mps: float = spec(0.05, "m/s", "1σ assumed for GPS speed/course over ground "
-                                "(DESIGN.md §4: 0.05)", min=0.001, max=10.0)
+                                "(0.05)", min=0.001, max=10.0)
     heading_tau_s: float = spec(3.0, "s", "compass/gyro complementary time constant",
                                 min=0.05, max=60.0)
     gyro_bias_tau_s: float = spec(60.0, "s", "gyro bias estimation time constant",

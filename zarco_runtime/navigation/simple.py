@@ -28,7 +28,7 @@ from zarco_core.messages import (
 )
 from zarco_runtime.navigation.settings import Navigation
 
-#: 1σ horizontal position noise assumed per fix type (m), from DESIGN.md §4.
+#: 1σ horizontal position noise assumed per fix type (m), from the receivers' specifications.
 FIX_SIGMA_M = {
     FixQuality.RTK_FIXED: 0.02,
     FixQuality.RTK_FLOAT: 0.35,

@@ -1,4 +1,4 @@
-"""Passive AUV tracking from the buoy's acoustic feed (DESIGN.md §6, paper IV–V).
+"""Passive AUV tracking from the buoy's acoustic feed (paper IV–V).
 
 Pure, deterministic, synchronous code: no I/O, no asyncio, no clocks.  The
 runtime feeds :class:`~zarco_runtime.tracking.tracker.AuvTracker` with
@@ -15,5 +15,5 @@ Modules, in data-flow order:
 * :mod:`.imm` – interacting multiple models (straight, manoeuvring, turning);
 * :mod:`.rls` – recursive least squares with forgetting on the line model;
 * :mod:`.tracker` – the glue, track aging and lost declaration;
-* :mod:`.follow` – the follow-law geometry of DESIGN.md §5.
+* :mod:`.follow` – the follow-law geometry of the paper, section VI.
 """

@@ -4,7 +4,7 @@ The AUV interrogates beacon i (event ``I``, beacon i), beacon i replies after
 its turnaround τ_i (event ``R``, beacon i), and the AUV interrogates the next
 beacon a fixed delay δ after hearing the reply.  The listener (at beacon k)
 timestamps what it hears on UTC; a *cycle* j is the triple
-(t^I_j, t^R_j, t^I_{j+1}) for one beacon (DESIGN.md §6).
+(t^I_j, t^R_j, t^I_{j+1}) for one beacon (paper IV–V).
 
 Rules, all on the listener's UTC times (s):
 

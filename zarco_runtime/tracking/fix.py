@@ -1,6 +1,6 @@
 """Ranges, emission time, motion-bias correction and the depth-corrected fix.
 
-DESIGN.md §6, with the listener at beacon L and a cycle (t^I_j, t^R_j, t^I_{j+1})
+Paper IV, with the listener at beacon L and a cycle (t^I_j, t^R_j, t^I_{j+1})
 on beacon i (UTC seconds at the listener), turnaround τ_i, AUV delay δ, sound
 speed c and d_i the 3-D distance from beacon i to the listener::
 

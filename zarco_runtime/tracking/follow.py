@@ -1,4 +1,4 @@
-"""Follow-law geometry of DESIGN.md §5 (paper VI), as pure functions.
+"""Follow-law geometry (paper VI), as pure functions.
 
 Inputs: the AUV's line (x0, y0, vx, vy) from the RLS — NED metres and m/s,
 (x0, y0) the AUV's position at the time origin t0 — and the ASV position
@@ -19,7 +19,7 @@ line through (x0, y0) is ((x − x0)(−vy) + (y − y0) vx)/v_AUV
 = (vx y − vy x)/v_AUV + h_AUV: **d > 0 when the ASV is to starboard of the
 AUV's track**, the convention of :meth:`zarco_runtime.guidance.mission.Leg.project`,
 so ψ_ref = ψ_AUV − arctan(k_y d + k_l ∫d dt) turns the ASV back to port.
-The seed paper prints d = (vx y + vy x)/v_AUV + h_AUV: that is a sign error —
+The paper prints d = (vx y + vy x)/v_AUV + h_AUV: that is a sign error —
 with the AUV heading east (vx = 0, vy = v) it gives d = x + x0 instead of
 x0 − x, which is not even zero on the line (x = x0), and for north/south
 courses it flips the side.
@@ -110,6 +110,6 @@ def follow_geometry(x0: float, y0: float, vx: float, vy: float, x: float, y: flo
 
 def drag_feedforward_n(v_mps: float, x_u: float, x_uu: float) -> float:
     """F_f(v): the surge force (N) that holds a steady speed ``v_mps`` through the
-    water against the damping X = X_u u + X_|u|u |u| u (DESIGN.md §4; X_u, X_|u|u
+    water against the damping X = X_u u + X_|u|u |u| u (zarco_core/vessel.py; X_u, X_|u|u
     negative, N s/m and N s²/m²): F_f = −X_u v − X_|u|u |v| v."""
     return -x_u * v_mps - x_uu * abs(v_mps) * v_mps

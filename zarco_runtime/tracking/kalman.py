@@ -1,5 +1,5 @@
 """Constant-velocity Kalman filter of the AUV's horizontal motion, run at the
-emission times of the fixes (DESIGN.md §6).
+emission times of the fixes (paper IV–V).
 
 State (x, y, vx, vy): NED position (m, x north, y east) and velocity (m/s) at
 time :attr:`CvKalman.t` (UTC seconds — any clock works, only differences are

@@ -4,7 +4,7 @@ Conventions of :mod:`zarco_core.config`: ``@dataclass(slots=True)``, every
 field built with :func:`~zarco_core.config.spec` (default, unit, doc, range),
 cross-field checks in ``validate()`` raising ``ValueError("key: reason")``.
 
-Frames (DESIGN.md §3): beacon positions are local NED ``[north, east, depth]``
+Frames: beacon positions are local NED ``[north, east, depth]``
 metres about the configured origin, depth positive down.  Times in seconds.
 
 :class:`Network` is the immutable, precomputed form of

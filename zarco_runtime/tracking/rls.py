@@ -5,7 +5,7 @@ Model, NED metres and m/s, t in seconds on any clock::
     x(t) = x0 + vx (t − t0)        y(t) = y0 + vy (t − t0)
 
 Both axes share the regressor φ = [1, t − t0], hence one 2×2 matrix P for both
-(DESIGN.md §6); the parameter covariance of each axis is σ² P.
+(paper V); the parameter covariance of each axis is σ² P.
 
 * **Re-centred time origin.**  At every update the origin t0 moves to the
   measurement time: the parameters shift exactly (x0 ← x0 + vx Δ, P ← A P Aᵀ
@@ -21,7 +21,7 @@ Both axes share the regressor φ = [1, t − t0], hence one 2×2 matrix P for bo
   g ← max(0, g + |e|²/(2σ²(1 + p00)) − drift) declares a turn when it exceeds
   its threshold (outside a hold-off after the last one).  The caller then
   re-seeds the line with :meth:`LineRls.reset` (the tracker uses the Kalman
-  filter's state and covariance), which is the covariance reset of DESIGN.md §6.
+  filter's state and covariance), which is the covariance reset of the paper (section V).
 
 Plain Python floats: a 2×2 problem is cheapest without numpy.
 """

@@ -1,4 +1,4 @@
-"""The passive AUV tracker: acoustic events in, AUV track out (DESIGN.md §6).
+"""The passive AUV tracker: acoustic events in, AUV track out (paper IV–V).
 
 :class:`AuvTracker` glues the chain, one event at a time::
 
