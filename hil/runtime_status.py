@@ -92,8 +92,8 @@ class RuntimeStatus:
     modes: list[str] = field(default_factory=list)
     #: every failsafe name ever active in a snapshot
     failsafes_seen: set[str] = field(default_factory=set)
-    #: per snapshot: (wall, mode, mission progress's along-track, cross-track (m))
-    progress: list[tuple[float, str, float | None, float | None]] = \
+    #: per snapshot: (wall, mode, mission progress's along-track, cross-track (m), phase)
+    progress: list[tuple[float, str, float | None, float | None, str]] = \
         field(default_factory=list)
     bad_lines: int = 0
     _offset: int = 0
@@ -153,7 +153,8 @@ class RuntimeStatus:
         self._mode(mode)
         self.failsafes_seen.update(rec.get("failsafes") or [])
         mp = rec.get("mission") or {}
-        self.progress.append((wall, mode, mp.get("along_m"), mp.get("xtrack_m")))
+        self.progress.append((wall, mode, mp.get("along_m"), mp.get("xtrack_m"),
+                              str(mp.get("phase") or "")))
         for dev, d in (rec.get("devices") or {}).items():
             if dev not in self._state:  # its first state (no event for it)
                 self._transition(wall, dev, str(d.get("state", "")), str(d.get("reason", "")))
@@ -209,12 +210,13 @@ class RuntimeStatus:
         return out
 
     def steering_since(self, mode: str) -> float | None:
-        """Wall time of the first snapshot in ``mode`` whose mission progress has a
-        non-zero along- or cross-track error: the guidance is steering along
-        something (in follow: the AUV's line, so the tracker has acquired it;
-        while waiting for a track both are exactly 0)."""
-        for wall, m, along, xtrack in self.progress:
-            if m == mode and ((along is not None and along != 0.0)
+        """Wall time of the first snapshot in ``mode`` whose guidance steers by
+        something: a follow mission's phase is ``follow`` (the tracker has acquired
+        the AUV: above a still AUV the boat holds over it, with no line to be off),
+        or the mission progress has a non-zero along- or cross-track error (while
+        waiting for a track both are exactly 0)."""
+        for wall, m, along, xtrack, phase in self.progress:
+            if m == mode and (phase == "follow" or (along is not None and along != 0.0)
                               or (xtrack is not None and xtrack != 0.0)):
                 return wall
         return None

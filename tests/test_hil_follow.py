@@ -81,8 +81,8 @@ def test_the_runtime_followed_on_four_serial_ports_and_stopped_cleanly(hil: HilR
 
 def test_the_runtime_acquired_the_auv_while_it_hovered(hil: HilResult) -> None:
     r = hil.report
-    # the follow guidance steered along the AUV's line (the tracker had a track
-    # with a line) before the AUV began to move at 15 s
+    # the follow guidance steered by the AUV (the tracker had acquired it: the
+    # mission's phase was "follow") before the AUV began to move at 15 s
     t = r["hil"]["follow_steering_s"]
     assert t is not None and t < r["auv_moves_s"], t
     # ... and came closer to it than it started (5 m away)

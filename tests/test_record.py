@@ -296,6 +296,35 @@ def test_a_stalled_writer_never_blocks_the_publisher() -> None:
     assert faults and "dropped" in faults[0].reason and math.isfinite(faults[0].t)
 
 
+def test_a_run_stopped_before_its_first_flush_keeps_its_messages(tmp_path: Path) -> None:
+    """Real time: the runtime stops before the recorder's first hand-over (a start
+    ended at once): the types first seen in the last batch get their channels, and
+    the finished file holds every message."""
+    import asyncio
+    import contextlib
+
+    cfg = RuntimeConfig()
+    cfg.record.dir = str(tmp_path)
+    cfg.record.flush_s = 60.0  # no hand-over before the stop
+    bus = Bus()
+
+    async def main() -> None:
+        rec = Recorder(cfg, bus, Clock(utc_offset_s=0.0))
+        task = asyncio.create_task(rec.run())
+        await asyncio.sleep(0.2)
+        for k in range(5):
+            bus.publish(Event(float(k), "mission", f"event {k}", "test"))
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+
+    asyncio.run(main())
+    (f,) = tmp_path.glob("*.mcap")
+    r = open_recording(str(f))
+    texts = [m.json()["text"] for m in iter_messages(r) if m.topic == "/Event"]
+    assert texts == [f"event {k}" for k in range(5)]
+
+
 def test_a_killed_writer_leaves_a_file_every_reader_reads_to_its_cut(tmp_path: Path) -> None:
     """kill -9 of the writer at random moments while it writes: the file always
     ends in a cut record (EndOfFile for mcap's streaming reader), never in a record

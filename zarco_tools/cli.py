@@ -90,13 +90,19 @@ def summary(report: dict[str, Any]) -> str:
     ]
     for leg in report["legs"]:
         lines.append(
-            f" {leg['leg']:3d}  {leg['speed_mps']:4.2f}  {leg['xtrack_rms_m']:7.3f}  "
-            f"{leg['xtrack_p95_m']:7.3f}  {leg['xtrack_max_m']:7.3f}  {leg['overshoot_m']:7.2f}"
+            f" {leg['leg']:3d}  {leg['speed_mps']:4.2f}  {_cell(leg['xtrack_rms_m'], 3)}  "
+            f"{_cell(leg['xtrack_p95_m'], 3)}  {_cell(leg['xtrack_max_m'], 3)}  "
+            f"{_cell(leg['overshoot_m'], 2)}"
         )
     if report.get("faults"):
         lines.append("")
         lines.append("faults: " + "; ".join(report["faults"]))
     return "\n".join(lines)
+
+
+def _cell(v: float | None, digits: int) -> str:
+    """A table cell 7 wide: the value, or "—" where a leg has none (a run cut short)."""
+    return f"{'—':>7}" if v is None else f"{v:7.{digits}f}"
 
 
 def cmd_sim(args: argparse.Namespace) -> int:

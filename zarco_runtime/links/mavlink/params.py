@@ -41,7 +41,6 @@ TABLE: tuple[tuple[str, str, str], ...] = (
     ("CTL_XTRK_TAU_S", "control", "xtrack_tau_s"),
     ("CTL_INT_WIN_M", "control", "integral_window_m"),
     ("CTL_MAX_ICPT_DEG", "control", "max_intercept_deg"),
-    ("CTL_CUR_TAU_S", "control", "current_tau_s"),
     ("CTL_SPD_KP", "control", "speed_kp"),
     ("CTL_SPD_KI", "control", "speed_ki"),
     ("CTL_HDG_KP", "control", "heading_kp"),

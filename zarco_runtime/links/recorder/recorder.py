@@ -426,11 +426,10 @@ class Recorder:
     def _finish(self) -> None:
         """Hand over what is pending and let the writer finish its file (blocking:
         the runtime is stopping, or the writer is gone)."""
-        proc, self.proc = self.proc, None
+        proc = self.proc
         if proc is None:
             return
-        self._batch()
-        self.proc = proc
+        self._batch()  # while the writer is known: a type first seen now gets its channel
         with contextlib.suppress(RuntimeError, OSError):
             if proc.stdin is not None and proc.poll() is None:
                 os.set_blocking(proc.stdin.fileno(), True)
