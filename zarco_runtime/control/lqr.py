@@ -150,4 +150,4 @@ class GainSchedule:
         i = bisect.bisect_right(sp, u_mps)
         w = (u_mps - sp[i - 1]) / (sp[i] - sp[i - 1])
         k0, k1 = self.gains[i - 1].k, self.gains[i].k
-        return tuple(a + w * (b - a) for a, b in zip(k0, k1, strict=True))
+        return tuple([a + w * (b - a) for a, b in zip(k0, k1, strict=True)])

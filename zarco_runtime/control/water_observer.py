@@ -103,6 +103,20 @@ class WaterObserver:
         self.x_lag = 0.0
         self.n_lag = 0.0
         self.updates = 0
+        # work arrays, allocated once: a step runs at the control rate and small
+        # numpy allocations cost as much as the arithmetic on 8 × 8
+        self._P_diag = self.P.reshape(64)[::9]  # a view on P's diagonal
+        self._F = np.eye(8)
+        self._F_dt = math.nan  # the period the constant part of _F was built for
+        self._qdt = np.zeros(8)
+        self._FP = np.empty((8, 8))
+        self._buf = np.empty((8, 8))
+        self._h_along = np.zeros(8)
+        self._h_along[IU] = 1.0
+        self._h_across = np.zeros(8)
+        self._h_across[IV] = 1.0
+        self._ph = np.empty(8)
+        self._k = np.empty(8)
 
     # ------------------------------------------------------------------ values
     @property
@@ -163,33 +177,42 @@ class WaterObserver:
         w = float(x[IW])
         x[IV] = v + dt * (vm.y_v * v - vm.m_kg * u * r + w) / self.m_v
         x[IW] = w * (1.0 - dt / self.gust_tau_s)
-        F = np.eye(8)
+        F = self._F
+        if dt != self._F_dt:  # the entries that depend on dt only
+            self._F_dt = dt
+            F[IV, IV] = 1.0 + dt * vm.y_v / self.m_v
+            F[IV, IW] = dt / self.m_v
+            F[IW, IW] = 1.0 - dt / self.gust_tau_s
+            F[IU, IWX] = dt / self.m_u
+            F[IWX, IWX] = 1.0 - dt / self.gust_tau_s
+            np.multiply(self._q, dt, out=self._qdt)
         F[IU, IU] = 1.0 + dt * (vm.x_u + 2.0 * vm.x_uu * abs(u)) / self.m_u
         F[IU, ID] = dt * (1.0 + k) * nl / b / self.m_u if self.estimate_mismatch else 0.0
         F[IU, IK] = dt * thrust / self.m_u
-        F[IV, IV] = 1.0 + dt * vm.y_v / self.m_v
         F[IV, IU] = -dt * vm.m_kg * r / self.m_v
-        F[IV, IW] = dt / self.m_v
-        F[IW, IW] = 1.0 - dt / self.gust_tau_s
-        F[IU, IWX] = dt / self.m_u
-        F[IWX, IWX] = 1.0 - dt / self.gust_tau_s
-        P[:] = F @ P @ F.T
-        P[np.diag_indices(8)] += self._q * dt
+        np.matmul(F, P, out=self._FP)
+        np.matmul(self._FP, F.T, out=P)
+        self._P_diag += self._qdt
         if not (nav.pos_valid and nav.heading_valid and math.isfinite(nav.psi_rad)
                 and math.isfinite(nav.vn_mps) and math.isfinite(nav.ve_mps)):
             return
         c, s = math.cos(nav.psi_rad), math.sin(nav.psi_rad)
         along = nav.vn_mps * c + nav.ve_mps * s
         across = -nav.vn_mps * s + nav.ve_mps * c
-        self._update(np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-                     along - float(x[ICN]) * c - float(x[ICE]) * s)
-        self._update(np.array([0.0, 1.0, -s, c, 0.0, 0.0, 0.0, 0.0]), across)
+        self._update(self._h_along, along - float(x[ICN]) * c - float(x[ICE]) * s)
+        h = self._h_across
+        h[ICN] = -s
+        h[ICE] = c
+        self._update(h, across)
         self.updates += 1
 
     def _update(self, h: np.ndarray, z: float) -> None:
-        x, P = self.x, self.P
-        ph = P @ h
-        k = ph / (float(h @ ph) + self.r_vel)
+        """Scalar measurement z = h·x (variance ``r_vel``), in place."""
+        x, P, ph, k, buf = self.x, self.P, self._ph, self._k, self._buf
+        np.matmul(P, h, out=ph)
+        np.divide(ph, float(h @ ph) + self.r_vel, out=k)
         x += k * (z - float(h @ x))
-        P -= np.outer(k, ph)
-        P[:] = 0.5 * (P + P.T)
+        np.multiply.outer(k, ph, out=buf)
+        P -= buf
+        np.add(P, P.T, out=buf)
+        np.multiply(buf, 0.5, out=P)

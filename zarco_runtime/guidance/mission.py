@@ -77,7 +77,8 @@ class Leg:
 
         d > 0 when the point is to starboard (right) of the direction of travel.
         """
-        c, s = math.cos(self.course_rad), math.sin(self.course_rad)
+        course = self.course_rad
+        c, s = math.cos(course), math.sin(course)
         dx, dy = x - self.n0, y - self.e0
         return dx * c + dy * s, -dx * s + dy * c
 

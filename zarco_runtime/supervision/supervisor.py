@@ -136,6 +136,8 @@ class Supervisor:
         self.failsafes = FailsafeMonitor(cfg.failsafe)
         self.fence = Fence(cfg.geofence, self.frame)
         self.home: tuple[float, float] | None = None
+        #: the last home converted to geodetic: (home, (lat_deg, lon_deg))
+        self._home_ll: tuple[tuple[float, float], tuple[float, float]] | None = None
         if cfg.supervisor.home:
             self.home = self.frame.to_ned(cfg.supervisor.home[0], cfg.supervisor.home[1])
             self.fence.home = self.home
@@ -667,7 +669,7 @@ class Supervisor:
         counters["commands_refused"] = self.acks["refused"]
         home_lat = home_lon = None
         if self.home is not None:
-            home_lat, home_lon, _ = self.frame.to_geodetic(*self.home)
+            home_lat, home_lon = self._home_geodetic(self.home)
         p = self.progress
         prog = MissionProgress(p.kind, p.name, p.leg, p.legs, p.complete, p.xtrack_m, p.along_m,
                                p.phase)
@@ -676,6 +678,14 @@ class Supervisor:
                             sorted(self.failsafes.active), devs,
                             self._components(), counters, self.directive.reason,
                             home_lat, home_lon)
+
+    def _home_geodetic(self, home: tuple[float, float]) -> tuple[float, float]:
+        """(lat, lon) degrees of ``home``, converted once per home (pymap3d costs
+        a fraction of a millisecond a call, and a status goes out every second)."""
+        if self._home_ll is None or self._home_ll[0] != home:
+            lat, lon, _ = self.frame.to_geodetic(*home)
+            self._home_ll = (home, (lat, lon))
+        return self._home_ll[1]
 
     def _components(self) -> dict[str, ComponentState]:
         """Every component's state: the runtime's account, with what the bus said."""
