@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from drivers.nmea import (
     FastHandler,
@@ -193,42 +193,40 @@ _HDG_RE = re.compile(rf"{_DEC},{_OFFSET},{_OFFSET}")
 _ROT_RE = re.compile(r"(-?\d+(?:\.\d+)?),A")
 
 
-def fast_hdt(talker: str, rest: str, t: float, source: str,
-             variation_deg: float | None) -> list[Heading] | None:
-    m = _HDT_RE.fullmatch(rest)
-    if m is None:
-        return None
-    deg = float(m[1])
+def _bearing(text: str) -> float | None:
+    """A heading field (°) in [0, 360]: 360 is 0; beyond it, None (implausible)."""
+    deg = float(text)
     if deg > 360.0:
         return None
-    if deg == 360.0:
-        deg = 0.0
-    return [Heading(t, source, "HDT", wrap_2pi(math.radians(deg)), True, deg)]
+    return 0.0 if deg == 360.0 else deg
 
 
-def fast_ths(talker: str, rest: str, t: float, source: str,
-             variation_deg: float | None) -> list[Heading] | None:
-    m = _THS_RE.fullmatch(rest)
-    if m is None:
-        return None
-    deg = float(m[1])
-    if deg > 360.0:
-        return None
-    if deg == 360.0:
-        deg = 0.0
-    return [Heading(t, source, "THS", wrap_2pi(math.radians(deg)), True, deg)]
+def _true_heading(rx: re.Pattern[str], sentence: str) -> Callable[
+        [str, str, float, str, float | None], list[Heading] | None]:
+    """The fast parser of a true-heading sentence whose body ``rx`` matches."""
+
+    def parse(talker: str, rest: str, t: float, source: str,
+              variation_deg: float | None) -> list[Heading] | None:
+        m = rx.fullmatch(rest)
+        deg = None if m is None else _bearing(m[1])
+        if deg is None:
+            return None
+        return [Heading(t, source, sentence, wrap_2pi(math.radians(deg)), True, deg)]
+
+    return parse
+
+
+fast_hdt = _true_heading(_HDT_RE, "HDT")
+fast_ths = _true_heading(_THS_RE, "THS")
 
 
 def _fast_hdm(talker: str, rest: str, t: float, source: str,
               variation_deg: float | None) -> list[Heading] | None:
     m = _HDM_RE.fullmatch(rest)
-    if m is None:
+    deg = None if m is None else _bearing(m[1])
+    if deg is None:
         return None
-    deg = float(m[1])
-    if deg > 360.0:
-        return None
-    return [heading_from_magnetic(t, source, "HDM", 0.0 if deg == 360.0 else deg, None,
-                                  variation_deg)]
+    return [heading_from_magnetic(t, source, "HDM", deg, None, variation_deg)]
 
 
 def _fast_hdg(talker: str, rest: str, t: float, source: str,

@@ -14,8 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-import pytest
-from test_record_restart import Feeder, _ctl, _start, _wait
+from test_record_restart import _ctl, _start, _wait, pty_rig
 
 from zarco_tools.log.reader import iter_messages, open_recording
 from zarco_tools.log.replay import replay, report
@@ -24,33 +23,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_replay_of_a_real_run_reproduces_its_navigation(tmp_path: Path) -> None:
-    try:
-        a, b = os.openpty()
-        os.close(a)
-        os.close(b)
-    except OSError as exc:  # pragma: no cover
-        pytest.skip(f"no pseudo-terminals here: {exc}")
-    feeder = Feeder(tmp_path)
-    feeder.start()
+    cfg, feeder = pty_rig(tmp_path, "")
     lat, lon = feeder.origin
-    cfg = tmp_path / "zarco.toml"
-    cfg.write_text(f"""
-[origin]
-lat_deg = {lat}
-lon_deg = {lon}
-[devices.gps]
-url = "{feeder.ports['gps'].link}"
-[devices.compass]
-url = "{feeder.ports['compass'].link}"
-[devices.thrusters]
-url = "{feeder.ports['thrusters'].link}"
-[supervisor]
-state_file = ""
-control_socket = "{tmp_path / 'ctl.sock'}"
-[record]
-dir = "recordings"
-min_free_mb = 0
-""")
     sock = tmp_path / "ctl.sock"
     log = tmp_path / "runtime.log"
     p = _start(cfg, log)

@@ -91,8 +91,10 @@ def _start(cfg: Path, log: Path) -> subprocess.Popen[bytes]:
                             start_new_session=True)
 
 
-@pytest.fixture()
-def rig(tmp_path: Path):  # type: ignore[no-untyped-def]
+def pty_rig(tmp_path: Path, state_file: str) -> tuple[Path, Feeder]:
+    """A vessel configuration on pseudo-terminals fed by a running :class:`Feeder`
+    (skips where there are none): the control socket and a relative recording
+    directory in ``tmp_path``, the supervisor's state in ``state_file`` ("" for none)."""
     try:
         a, b = os.openpty()
         os.close(a)
@@ -114,12 +116,18 @@ url = "{feeder.ports['compass'].link}"
 [devices.thrusters]
 url = "{feeder.ports['thrusters'].link}"
 [supervisor]
-state_file = "{tmp_path / 'state' / 'state.json'}"
+state_file = "{state_file}"
 control_socket = "{tmp_path / 'ctl.sock'}"
 [record]
 dir = "recordings"
 min_free_mb = 0
 """)
+    return cfg, feeder
+
+
+@pytest.fixture()
+def rig(tmp_path: Path):  # type: ignore[no-untyped-def]
+    cfg, feeder = pty_rig(tmp_path, str(tmp_path / "state" / "state.json"))
     yield tmp_path, cfg, feeder
     feeder.stop.set()
 
