@@ -385,6 +385,11 @@ _GGA_RE = re.compile(rf"{RE_TIME},{RE_POS},(\d)?,(\d\d?)?,{RE_UDEC},{RE_SDEC},M?
                      rf"{RE_UDEC},(\d{{1,4}})?")
 
 
+def _opt(text: str | None) -> float | None:
+    """An optional numeric field of a fast-parsed sentence: None where it is empty."""
+    return None if text is None else float(text)
+
+
 def _fast_gga(talker: str, rest: str, t: float, source: str,
               variation_deg: float | None) -> list[GpsFix] | None:
     m = _GGA_RE.fullmatch(rest)
@@ -406,9 +411,9 @@ def _fast_gga(talker: str, rest: str, t: float, source: str,
         if a >= 60.0 or b >= 60.0 or lat > 90.0 or lon > 180.0:
             return None
         pos = ((-lat if ns == "S" else lat), (-lon if ew == "W" else lon))
-    hdop = None if hdop_s is None else float(hdop_s)
-    alt = None if alt_s is None else float(alt_s)
-    age = None if age_s is None else float(age_s)
+    hdop = _opt(hdop_s)
+    alt = _opt(alt_s)
+    age = _opt(age_s)
     if ((hdop is not None and hdop > HDOP_MAX)
             or (alt is not None and not ALT_MIN_M <= alt <= ALT_MAX_M)
             or (sep_s is not None and abs(float(sep_s)) > GEOID_SEP_MAX_M)
@@ -438,8 +443,8 @@ def _fast_rmc(talker: str, rest: str, t: float, source: str,
         m.groups())
     utc = _tod(hh, mi, ss)
     pos = _pos(ld, lm, ns, od, om, ew)
-    sog = None if sog_s is None else float(sog_s)
-    cog = None if cog_s is None else float(cog_s)
+    sog = _opt(sog_s)
+    cog = _opt(cog_s)
     if ((utc is not None and utc < 0.0) or pos is _BAD_POS
             or (sog is not None and sog > SOG_MAX_KN) or (cog is not None and cog > 360.0)
             or (var is not None and float(var) > VARIATION_MAX_DEG)):
@@ -472,10 +477,10 @@ def _fast_vtg(talker: str, rest: str, t: float, source: str,
     cog_s, mag_s, kn_s, kmh_s, mode = m.groups()
     if mode is not None and FAA_MODE[mode] is FixQuality.NONE:
         return None
-    cog = None if cog_s is None else float(cog_s)
-    mag = None if mag_s is None else float(mag_s)
-    kn = None if kn_s is None else float(kn_s)
-    kmh = None if kmh_s is None else float(kmh_s)
+    cog = _opt(cog_s)
+    mag = _opt(mag_s)
+    kn = _opt(kn_s)
+    kmh = _opt(kmh_s)
     if ((cog is not None and cog > 360.0) or (mag is not None and mag > 360.0)
             or (kn is not None and kn > SOG_MAX_KN)
             or (kmh is not None and kmh > SOG_MAX_KN * 1.852)):
@@ -505,10 +510,10 @@ def _fast_gst(talker: str, rest: str, t: float, source: str,
     utc = _tod(hh, mi, ss)
     if utc is not None and utc < 0.0:
         return None
-    rms = None if rms_s is None else float(rms_s)
-    s_lat = None if la is None else float(la)
-    s_lon = None if lo is None else float(lo)
-    s_alt = None if al is None else float(al)
+    rms = _opt(rms_s)
+    s_lat = _opt(la)
+    s_lon = _opt(lo)
+    s_alt = _opt(al)
     if s_lat is None and s_lon is None and s_alt is None:
         return None
     if ((rms is not None and rms > RMS_MAX_M) or (o is not None and float(o) > 360.0)
