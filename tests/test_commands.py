@@ -109,7 +109,7 @@ def test_a_waypoint_out_of_range_is_named_by_its_index(i: int, off: float, k: in
     wps = [[41.0, -8.0]] * 4
     bad = list(wps[i])
     bad[k] = (91.0 if k == 0 else 181.0) * math.copysign(1.0, off)
-    wps = wps[:i] + [bad] + wps[i + 1:]
+    wps = [*wps[:i], bad, *wps[i + 1:]]
     e = _refused("mission", {"waypoints": wps})
     assert e.field == f"waypoints[{i}][{k}]"
 
