@@ -102,10 +102,11 @@ def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
             ("stop", "", {"ok": True}),                                  # empty payload = {}
             ("mode", '{"mode": "hold"}', {"ok": False, "reason": "no valid position"}),
             ("mode", '{"mode": "sideways"}', {"ok": False}),
-            ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "not in manual mode"}),
-            ("mode", '{"mode": "manual"}', {"ok": True, "mode": "manual"}),
+            ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "disarmed"}),
+            ("mode", '{"mode": "manual"}', {"ok": False, "reason": "disarmed"}),
+            ("arm", "{}", {"ok": False, "reason": "no valid position"}),
             ("thrust", '{"u1": "x", "u2": 10}', {"ok": False}),
-            ("thrust", '{"u1": 10, "u2": 10}', {"ok": True, "mode": "manual"}),
+            ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "disarmed"}),
             ("fly", "{}", {"ok": False}),
             ("stop", "not json", {"ok": False}),
             ("stop", "[1, 2]", {"ok": False}),
@@ -132,7 +133,7 @@ def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
         assert not wild["ok"] and wild["reason"].startswith("bad request")
         # malformed payloads and unknown or ill-typed commands never reached the
         # supervisor (refused at decoding); the others did, once each
-        assert len(seen) == 7
+        assert len(seen) == 8
 
     _run(_config(port), port, body)
 

@@ -302,6 +302,27 @@ class Command:
     args: CommandArgs
 
 
+#: a parameter's value: a number, a flag, a word (one of its choices) or a list of
+#: [lat_deg, lon_deg] points (the geofence polygon)
+ParamValue = float | int | bool | str | list[list[float]]
+
+
+@dataclass(slots=True)
+class ParamChange:
+    """A parameter of the running configuration changed: the supervisor accepted
+    a ``param`` command.  ``name`` is the dotted configuration key
+    (``failsafe.link_lost_s``), ``value`` the new value and ``old`` the one it
+    replaced, ``source`` and ``id`` those of the command.  Recorded, and applied
+    again by ``zarco log replay``."""
+
+    t: float
+    name: str
+    value: ParamValue
+    old: ParamValue
+    source: str = ""
+    id: str = ""
+
+
 @dataclass(slots=True)
 class CommandAck:
     """Exactly one per Command: accepted (``ok``) or refused with ``reason``.
@@ -319,7 +340,8 @@ class CommandAck:
 @dataclass(slots=True)
 class Event:
     """Something an operator should know, in words: ``kind`` is ``mode``,
-    ``failsafe``, ``ack``, ``fault``, ``component`` or ``mission``."""
+    ``arming``, ``failsafe``, ``ack``, ``param``, ``fault``, ``component`` or
+    ``mission``."""
 
     t: float
     kind: str
@@ -386,12 +408,17 @@ class VesselStatus:
     """The 1 Hz status snapshot: the single source for ``zarco run --status``,
     HIL and the shore link's health.
 
-    ``utc_s`` is UTC seconds since the epoch at ``t``; ``failsafes`` the active
-    failsafe conditions; ``components`` maps a component to its state and
-    restart count; ``counters`` gathers the control loop's and the bus's;
-    ``home_lat_deg``/``home_lon_deg`` where ``return`` goes (None: not known
-    yet).  Published once a second and at once on every change of mode or of
-    the active failsafes.
+    ``utc_s`` is UTC seconds since the epoch at ``t``; ``armed`` whether the
+    supervisor lets the thrusters turn (``arm``; a disarmed boat never moves);
+    ``failsafes`` the active failsafe conditions; ``components`` maps a
+    component to its state and restart count; ``counters`` gathers the control
+    loop's and the bus's; ``home_lat_deg``/``home_lon_deg`` where ``return``
+    goes (None: not known yet); ``mission_points`` the waypoints
+    ([lat_deg, lon_deg]) of the lines mission loaded or running (empty: none,
+    or cleared) and ``mission_id`` a number that changes whenever they do
+    (the MAVLink endpoint serves its mission from these, never a copy of its
+    own).  Published once a second and at once on every change of mode, of
+    arming, of the loaded mission or of the active failsafes.
     """
 
     t: float
@@ -406,6 +433,8 @@ class VesselStatus:
     reason: str = ""
     home_lat_deg: float | None = None
     home_lon_deg: float | None = None
+    mission_points: tuple[tuple[float, float], ...] = ()
+    mission_id: int = 0
 
 
 @dataclass(slots=True)

@@ -28,11 +28,21 @@ def cmd_ctl(args: argparse.Namespace) -> int:
     """``zarco ctl``: one command to a running runtime over its local socket."""
     import socket
 
-    if args.name == "status":
-        req: dict[str, Any] = {"name": "status"}
+    listing = args.name in ("status", "params")
+    if listing:
+        req: dict[str, Any] = {"name": args.name}
+    elif args.name == "param" and len(args.args) == 2:  # zarco ctl param NAME VALUE
+        try:
+            value: Any = json.loads(args.args[1])
+        except json.JSONDecodeError:
+            value = args.args[1]  # a word: one of the parameter's choices
+        req = {"name": "param", "args": {"name": args.args[0], "value": value}}
+    elif len(args.args) > 1:
+        print("zarco ctl: one ARGS (a JSON object), or `param NAME VALUE`", file=sys.stderr)
+        return 2
     else:
         try:
-            cmd_args = json.loads(args.args) if args.args else {}
+            cmd_args = json.loads(args.args[0]) if args.args else {}
         except json.JSONDecodeError as exc:
             print(f"zarco ctl: ARGS is not JSON: {exc}", file=sys.stderr)
             return 2
@@ -52,8 +62,8 @@ def cmd_ctl(args: argparse.Namespace) -> int:
         print(f"zarco ctl: {args.socket}: {exc}", file=sys.stderr)
         return 2
     reply = json.loads(buf or b"{}")
-    print(json.dumps(reply, indent=None if args.name != "status" else 2))
-    if args.name != "status" and not reply.get("ok"):
+    print(json.dumps(reply, indent=2 if listing else None))
+    if not listing and not reply.get("ok"):
         print(f"zarco ctl: refused: {reply.get('reason')}", file=sys.stderr)
         return 1
     return 0
@@ -74,13 +84,15 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     c = sub.add_parser("ctl", help="send a command to a running runtime (local socket)",
                        description="Send one command to the supervisor of a running "
                        "`zarco run` over its supervisor.control_socket and print its "
-                       "acknowledgement (exit 1 if refused). NAME: stop, mode, mission, "
-                       "follow, thrust, resume, arm, disarm, or status (the latest status "
-                       "snapshot). ARGS: the command's arguments as JSON, e.g. "
-                       "'{\"mode\": \"hold\"}'.")
+                       "acknowledgement (exit 1 if refused). NAME: stop, arm, disarm, mode, "
+                       "mission, follow, thrust, resume, param, or status (the latest status "
+                       "snapshot), params (every parameter, its range and value). ARGS: the "
+                       "command's arguments as JSON, e.g. '{\"mode\": \"hold\"}'; for "
+                       "param, NAME VALUE: `zarco ctl param failsafe.link_lost_s 20`.")
     c.add_argument("--socket", required=True, help="the runtime's control socket")
-    c.add_argument("name", help="command name, or status")
-    c.add_argument("args", nargs="?", default="", help="arguments as a JSON object")
+    c.add_argument("name", help="command name, or status, or params")
+    c.add_argument("args", nargs="*", default=[], help="arguments as a JSON object (param: "
+                   "NAME VALUE)")
     c.set_defaults(func=cmd_ctl)
 
     for ep in _tool_commands(argv):
