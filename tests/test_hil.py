@@ -75,13 +75,14 @@ def test_gps_unplug_and_replug_are_seen_and_survived(hil: HilResult) -> None:
 
 def test_the_position_failsafe_stopped_and_resumed_the_mission(hil: HilResult) -> None:
     """Without GPS for longer than the scenario's ``position_lost_s`` (0.5 s) the
-    supervisor's failsafe idles the boat and the mission resumes when it clears
-    (the scenario's ``failsafe.after_clear = "resume"``), as the status file tells."""
+    supervisor's failsafe fires (the scenario's action ``continue``: the drive
+    interlock holds the thrust while the position is lost) and the mission goes
+    on when the GPS is back, as the status file tells."""
     h = hil.report["hil"]
-    assert h["modes"] == ["idle", "lines", "idle", "lines", "hold"], h["modes"]
+    assert h["modes"] == ["idle", "lines", "hold"], h["modes"]
     fs = [f for f in h["failsafes"] if f["message"].startswith("position_lost")]
     assert len(fs) == 2, h["failsafes"]  # entered, then cleared
-    assert "action idle" in fs[0]["message"] and "cleared" in fs[1]["message"]
+    assert "action continue" in fs[0]["message"] and "cleared" in fs[1]["message"]
     assert 14.0 < fs[0]["t"] < 15.5 and fs[0]["t"] < fs[1]["t"] < 18.0, fs
     assert len(hil.report["faults"]) == 1, hil.report["faults"]
     assert hil.report["faults"][0].startswith("position_lost: no GPS position for 0.")

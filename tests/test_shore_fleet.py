@@ -90,7 +90,11 @@ def test_two_vessels_one_console(tmp_path: Path) -> None:
             assert obs.snapshot()["alpha"].state["mode"] == "hold"
             # the last mission can be resumed after a stop
             assert shore("--vessel", "beta", "stop", env=env).returncode == 0
-            _wait(obs, "beta", lambda s: s["mode"] == "idle")
+            _wait(obs, "beta", lambda s: s["mode"] == "idle" and not s["armed"])
+            r = shore("--vessel", "beta", "resume", env=env)
+            assert r.returncode == 1 and "REFUSED: disarmed" in r.stdout
+            r = shore("--vessel", "beta", "arm", env=env)
+            assert r.returncode == 0 and "arm accepted" in r.stdout, r.stdout
             r = shore("--vessel", "beta", "resume", env=env)
             assert r.returncode == 0 and "mode lines" in r.stdout
             # a vessel nobody has: no reply

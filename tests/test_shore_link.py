@@ -100,7 +100,7 @@ def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
         cases: list[tuple[str, bytes | str, dict[str, Any]]] = [
             ("stop", "{}", {"ok": True, "mode": "idle", "reason": ""}),
             ("stop", "", {"ok": True}),                                  # empty payload = {}
-            ("mode", '{"mode": "hold"}', {"ok": False, "reason": "no valid position"}),
+            ("mode", '{"mode": "hold"}', {"ok": False, "reason": "disarmed"}),
             ("mode", '{"mode": "sideways"}', {"ok": False}),
             ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "disarmed"}),
             ("mode", '{"mode": "manual"}', {"ok": False, "reason": "disarmed"}),

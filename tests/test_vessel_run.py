@@ -14,6 +14,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import tty
 from collections.abc import Iterator
@@ -252,34 +253,86 @@ class ThrusterController:
                 os.write(self.pty.master, encode_pzths(u1, u2, 0, 0, 0.0, 0.0))
 
 
+class Sensors(threading.Thread):
+    """The simulated world's GPS and compass bytes into their ptys, in real time (the
+    loop is not closed: the boat stays where it is, which is all arming needs)."""
+
+    def __init__(self, gps: Pty, compass: Pty) -> None:
+        super().__init__(daemon=True)
+        from drivers.sim.world import SimWorld
+        from zarco_runtime.settings import Origin
+        from zarco_tools.scenario import load_scenario
+
+        scn = load_scenario(Path(__file__).resolve().parents[1] / "config" / "scenarios"
+                            / "rectangle.toml")
+        o = Origin()  # the vessel file's (the test's configuration sets none)
+        scn.world.origin_lat_deg, scn.world.origin_lon_deg = o.lat_deg, o.lon_deg
+        self.world = SimWorld(scn.world, 1)
+        self.gps, self.compass = gps, compass
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        t0 = time.monotonic()
+        k = 0
+        while not self.stop.is_set():
+            k += 1
+            t = k * 0.05
+            time.sleep(max(0.0, t0 + t - time.monotonic()))
+            self.world.advance_to(t)
+            with contextlib.suppress(OSError):
+                os.write(self.compass.master, self.world.compass_bytes(t))
+                if k % 2 == 0:
+                    os.write(self.gps.master, self.world.gps_bytes(t))
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGQUIT])
 def test_every_stop_signal_leaves_zero_thrust_as_the_last_command(
         tmp_path: Path, sig: signal.Signals) -> None:
     with running(tmp_path) as (p, ptys):
         ctl = ThrusterController(ptys["thrusters"])
-        end = time.monotonic() + 5.0
-        while time.monotonic() < end and not ctl.commands:
-            ctl.poll()
-        ack = _ctl(tmp_path, "mode", {"mode": "manual"})  # through `zarco ctl`
-        assert ack["ok"], ack
-        # drive: thrust renewed well within the lease, on one socket connection
-        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-            s.connect(str(tmp_path / "control.sock"))
-            f = s.makefile("rw")
-            end = time.monotonic() + 30.0
-            while time.monotonic() < end and ctl.commands[-1:] != [(50.0, -30.0)]:
-                f.write(json.dumps({"name": "thrust", "args": {"u1": 50.0, "u2": -30.0}})
-                        + "\n")
-                f.flush()
-                assert json.loads(f.readline())["ok"]
-                ctl.poll(0.1)
-        assert ctl.commands[-1] == (50.0, -30.0)  # under way when the signal comes
-        p.send_signal(sig)
-        end = time.monotonic() + 15.0
-        while p.poll() is None and time.monotonic() < end:
-            ctl.poll()
-        for _ in range(5):
-            ctl.poll(0.02)
+        sensors = Sensors(ptys["gps"], ptys["compass"])
+        sensors.start()
+        answering = threading.Event()
+
+        def serve() -> None:  # the thruster controller answers all along
+            while not answering.is_set():
+                ctl.poll()
+
+        server = threading.Thread(target=serve, daemon=True)
+        server.start()
+        try:
+            end = time.monotonic() + 5.0
+            while time.monotonic() < end and not ctl.commands:
+                time.sleep(0.05)
+            ack = _ctl(tmp_path, "mode", {"mode": "manual"})  # through `zarco ctl`
+            assert ack["reason"] == "disarmed", ack
+            end = time.monotonic() + 20.0  # arm as an operator does, once the boat is ready
+            while not (ack := _ctl(tmp_path, "arm"))["ok"] and time.monotonic() < end:
+                time.sleep(0.2)
+            assert ack["ok"], ack
+            ack = _ctl(tmp_path, "mode", {"mode": "manual"})
+            assert ack["ok"], ack
+            # drive: thrust renewed well within the lease, on one socket connection
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+                s.connect(str(tmp_path / "control.sock"))
+                f = s.makefile("rw")
+                end = time.monotonic() + 30.0
+                while time.monotonic() < end and ctl.commands[-1:] != [(50.0, -30.0)]:
+                    f.write(json.dumps({"name": "thrust", "args": {"u1": 50.0, "u2": -30.0}})
+                            + "\n")
+                    f.flush()
+                    assert json.loads(f.readline())["ok"]
+                    time.sleep(0.1)
+            assert ctl.commands[-1] == (50.0, -30.0)  # under way when the signal comes
+            p.send_signal(sig)
+            end = time.monotonic() + 15.0
+            while p.poll() is None and time.monotonic() < end:
+                time.sleep(0.05)
+            time.sleep(0.2)
+        finally:
+            answering.set()
+            server.join(timeout=5)
+            sensors.stop.set()
         _out, err = p.communicate(timeout=5)
         assert p.returncode == 0, err[-2000:]
         assert ctl.commands[-1] == (0.0, 0.0)

@@ -75,6 +75,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if r["late"] or r["lost"]:
         notes.append(f"{r['late']} inputs played late, {r['lost']} chunks not read "
                      "(a port the replayed driver had closed)")
+    if r["params_applied"]:
+        notes.append(f"{r['params_applied']} parameter changes applied at their times")
+    notes += [f"parameter change refused here: {why}" for why in r["params_refused"]]
     for n in notes:
         print(f"  note: {n}")
     if args.record:

@@ -71,6 +71,14 @@ def cmd_stop(args: argparse.Namespace) -> int:
     return _one(args, "stop", {})
 
 
+def cmd_arm(args: argparse.Namespace) -> int:
+    return _one(args, "arm", {})
+
+
+def cmd_disarm(args: argparse.Namespace) -> int:
+    return _one(args, "disarm", {})
+
+
 def cmd_follow(args: argparse.Namespace) -> int:
     return _one(args, "follow", {})
 
@@ -337,7 +345,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="latest events shown per vessel")
     s.set_defaults(shore_func=cmd_status)
 
-    for name, fn, text in (("stop", cmd_stop, "stop: idle, zero thrust (always accepted)"),
+    for name, fn, text in (("stop", cmd_stop, "stop: idle, zero thrust, disarmed (always "
+                            "accepted)"),
+                           ("arm", cmd_arm, "arm: allow thrust (refused until the boat is "
+                            "ready, with the reason)"),
+                           ("disarm", cmd_disarm, "disarm: idle, zero thrust"),
                            ("follow", cmd_follow, "follow the AUV"),
                            ("resume", cmd_resume, "resume the last mission")):
         x = ss.add_parser(name, parents=[common()], help=text)
