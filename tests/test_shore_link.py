@@ -265,6 +265,7 @@ def test_one_bad_item_never_drops_another(monkeypatch: pytest.MonkeyPatch) -> No
                                                            "user": f"op{k[4:]}"}))
                 for hb in HOSTILE_BEATS[:2]:
                     s.put("zarco/v1/operator", hb)
+                time.sleep(0.02)  # within what the link reads (16 every 50 ms)
             for hb in HOSTILE_BEATS:
                 s.put("zarco/v1/operator", hb)
 
@@ -294,6 +295,50 @@ def test_one_bad_item_never_drops_another(monkeypatch: pytest.MonkeyPatch) -> No
         assert seen["shore"].restarts == 0
 
     _run(_config(port), port, body, seen=seen)
+
+
+def test_a_source_beyond_its_command_rate_is_answered_busy() -> None:
+    """A burst from one source: its first commands (twice ``commands_per_s``) reach
+    the supervisor, the rest are answered "busy" at once; another source and
+    ``stop`` are not held back by it; every query gets exactly one reply."""
+    port = free_port()
+
+    async def body(bus: Bus, s: Any, _gps: NmeaDevice) -> None:
+        seen: list[Command] = []
+        bus.listen(Command, seen.append)
+        replies: dict[int, list[dict[str, Any]]] = {i: [] for i in range(60)}
+        lock = threading.Lock()
+        loop = asyncio.get_running_loop()
+
+        def fire() -> None:
+            for i in range(60):
+                def cb(r: Any, i: int = i) -> None:
+                    with lock:
+                        replies[i].append(json.loads(r.ok.payload.to_bytes()))
+                user = "carol" if i == 50 else "bob"
+                s.get(f"zarco/v1/cmd/{'stop' if i == 55 else 'thrust'}", cb,
+                      payload='{"u1": 0, "u2": 0}' if i != 55 else "{}",
+                      attachment=json.dumps({"user": user, "id": f"c{i}"}), timeout=10.0)
+
+        await loop.run_in_executor(None, fire)
+        deadline = loop.time() + 15.0
+        while loop.time() < deadline:
+            with lock:
+                if all(replies.values()):
+                    break
+            await asyncio.sleep(0.05)
+        await asyncio.sleep(0.3)
+        assert all(len(r) == 1 for r in replies.values()), replies
+        busy = [i for i, r in replies.items() if r[0]["reason"].startswith("busy")]
+        # 5 commands a second, bursts of 10: a burst of 58 from bob lets 10 to 12 pass
+        assert 46 <= len(busy) <= 48, busy
+        assert all("more than 5 commands per second from shore:bob" in replies[i][0]["reason"]
+                   for i in busy)
+        assert 50 not in busy and 55 not in busy  # carol's, and a stop
+        assert replies[55][0]["ok"] is True
+        assert len(seen) == 60 - len(busy)  # the busy ones never reached the supervisor
+
+    _run(_config(port, commands_per_s=5.0), port, body)
 
 
 def test_operator_heartbeat_reaches_the_bus() -> None:

@@ -20,9 +20,13 @@ zenoh's access control (operators only); zenoh does not tell the application
 which authenticated user sent a query, so ``user`` is the name the client
 gives.
 
-Threads: zenoh calls its callbacks on its own threads.  They make no zenoh
-call; they read and bound what arrived and post it to the :mod:`.inbox`,
-which the event loop drains in slices of a few milliseconds.  Each item is
+Threads: zenoh calls the queryable's callback on its own threads; it makes
+no zenoh call, it reads and bounds the query, refuses at once ("busy") a
+source's commands beyond ``commands_per_s`` (``stop`` excepted), and posts
+the rest to the :mod:`.inbox`, which the event loop drains in slices of a
+few milliseconds.  Heartbeats and RTCM are kept by zenoh in ring channels
+and read at a bounded pace by threads of their own (:mod:`.ring_reader`),
+so that a flood costs no Python work beyond that pace.  Each item is
 handled in isolation: an exception from one becomes a refusal (for a
 command) and a counted ``fault``, never a restart of the link, and the next
 item is handled as usual.  Everything sent (puts, replies) goes through the
@@ -67,7 +71,8 @@ from zarco_runtime.links.shore.requests import (
     MAX_HEARTBEAT_BYTES,
     BadRequest,
 )
-from zarco_runtime.links.shore.rtcm_relay import RtcmRelay
+from zarco_runtime.links.shore.ring_reader import RingReader
+from zarco_runtime.links.shore.rtcm_relay import READ_PERIOD_S, RING, RtcmRelay, TokenBucket
 from zarco_runtime.links.shore.sender import Sender
 from zarco_runtime.links.shore.zenoh_config import TELEMETRY, boat_config, prefix
 from zarco_runtime.supervision.local import LocalCommands
@@ -77,6 +82,12 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("zarco.shore")
 _ids = itertools.count(1)
+#: operator heartbeats zenoh keeps (the latest); at most this many are read
+#: every HEARTBEAT_PERIOD_S (s)
+HEARTBEAT_RING = 16
+HEARTBEAT_PERIOD_S = 0.05
+#: command sources with a rate bucket of their own; the others share one
+SOURCES_MAX = 64
 
 
 def _reply_body(ok: bool, cid: str | None, mode: str | None, reason: str) -> str:
@@ -106,6 +117,11 @@ class ShoreLink:
         self._thread_lock = threading.Lock()
         self.sender = Sender(TELEMETRY)
         self.relay = RtcmRelay(self.cfg.rtcm_budget_bps, self._post_corrections)
+        self.readers = [
+            RingReader("heartbeat", HEARTBEAT_PERIOD_S, HEARTBEAT_RING, self._on_operator,
+                       self._thread_fault),
+            RingReader("rtcm", READ_PERIOD_S, RING, self.relay.on_sample, self._thread_fault)]
+        self._buckets: dict[str, TokenBucket] = {}
         self.rlog = RateLimitedLog(log)
         ctx.listen(VesselStatus, self._on_status)
         ctx.listen(Event, self._on_event)
@@ -120,6 +136,10 @@ class ShoreLink:
         """Count from any thread."""
         with self._thread_lock:
             self._thread_counters[key] += n
+
+    def _thread_fault(self, exc: Exception) -> None:
+        self._count("faults")
+        log.debug("shore: %s: %s", type(exc).__name__, exc)
 
     def link_counters(self) -> dict[str, int]:
         """Every counter of the link (the ``health`` object's ``link``)."""
@@ -182,19 +202,39 @@ class ShoreLink:
                          else b"", size,
                          att.to_bytes() if att is not None and att_size <= MAX_ATTACHMENT_BYTES
                          else b"", att_size)
+            source = requests.peek_user(item.attachment)
             inbox = self._inbox
-            if inbox is not None and inbox.post(item):
-                return
-            why = "busy: too many commands queued" if inbox is not None else \
-                "shore link starting"
+            if key.endswith("/cmd/stop") or self._admit(source):
+                if inbox is not None and inbox.post(item):
+                    return
+                why = "busy: too many commands queued" if inbox is not None else \
+                    "shore link starting"
+            else:
+                self._count("commands_rate_limited")
+                why = (f"busy: more than {self.cfg.commands_per_s:g} commands per second from "
+                       f"shore{':' + source if source else ''}; not acted on")
         except Exception as exc:  # an unreadable query still gets its reply
             self._count("faults")
             why = f"unreadable query ({type(exc).__name__})"
         self._count("commands_refused_at_once")
         self._reply(query, key, False, None, None, why)
 
+    def _admit(self, source: str) -> bool:
+        """Whether ``source`` may send one more command now (its token bucket:
+        ``commands_per_s``, a burst of twice that; ``stop`` is never limited)."""
+        with self._thread_lock:
+            b = self._buckets.get(source)
+            if b is None:
+                if len(self._buckets) >= SOURCES_MAX:
+                    source = "\0others"
+                    b = self._buckets.get(source)
+                if b is None:
+                    rate = self.cfg.commands_per_s
+                    b = self._buckets[source] = TokenBucket(rate, 2.0 * rate)
+        return b.take(1.0)
+
     def _on_operator(self, sample: Any) -> None:
-        """An operator heartbeat (zenoh's thread): decoded here, posted if sound."""
+        """An operator heartbeat (the heartbeat reader's thread): decoded, posted."""
         try:
             inbox = self._inbox
             if inbox is None:
@@ -210,14 +250,6 @@ class ShoreLink:
             self._count("faults")
             return
         inbox.post(Heartbeat(user))
-
-    def _on_rtcm(self, sample: Any) -> None:
-        """An ``rtcm`` sample (zenoh's thread): the byte budget, then the relay."""
-        try:
-            payload = sample.payload
-            self.relay.offer(len(payload), payload.to_bytes)
-        except Exception:
-            self._count("faults")
 
     def _post_corrections(self, frames: bytes) -> None:
         """Whole valid frames from the relay thread, to the event loop."""
@@ -290,16 +322,21 @@ class ShoreLink:
         try:
             pubs = {k: session.declare_publisher(f"{self.key}/{k}") for k in TELEMETRY}
             session.declare_queryable(f"{self.key}/cmd/**", self._on_query)
-            session.declare_subscriber(f"{self.key}/operator", self._on_operator)
-            session.declare_subscriber(f"{self.key}/rtcm", self._on_rtcm)
+            subs = [session.declare_subscriber(f"{self.key}/operator",
+                                               zenoh.handlers.RingChannel(HEARTBEAT_RING)),
+                    session.declare_subscriber(f"{self.key}/rtcm",
+                                               zenoh.handlers.RingChannel(RING))]
         except BaseException:
             session.close()
             raise
+        for reader, sub in zip(self.readers, subs, strict=True):
+            reader.start(sub)
         return session, pubs
 
     def _close(self, session: Any) -> None:
         """Stop the threads and close the session (a worker thread)."""
-        self.relay.stop()
+        for reader in self.readers:
+            reader.stop()
         self.sender.stop()
         if session is not None:
             session.close()
@@ -313,7 +350,6 @@ class ShoreLink:
             session, pubs = await asyncio.shield(opening)
             self._session = session
             self.sender.start(pubs)
-            self.relay.start()
             log.info("shore link: vessel %s listening on %s (auth %s)", self.cfg.vessel,
                      ", ".join(self.cfg.listen), self.cfg.auth)
             period = 1.0 / self.cfg.state_hz

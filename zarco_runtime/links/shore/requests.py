@@ -130,6 +130,19 @@ def attachment(att: bytes, size: int | None = None) -> tuple[str, str | None]:
     return user, cid
 
 
+def peek_user(att: bytes) -> str:
+    """The attachment's ``user`` if it reads as one, else ``""`` (never raises: the
+    rate limit's key, read before the attachment is judged)."""
+    if not att:
+        return ""
+    try:
+        meta = msgspec.json.decode(att)
+    except Exception:
+        return ""
+    user = meta.get("user") if isinstance(meta, dict) else None
+    return user if isinstance(user, str) and len(user) <= MAX_NAME_CHARS else ""
+
+
 def command_name(key: str, prefix: str) -> str:
     """``<name>`` of ``<prefix>/cmd/<name>``."""
     base = f"{prefix}/cmd/"
