@@ -20,11 +20,11 @@ zenoh's access control (operators only); zenoh does not tell the application
 which authenticated user sent a query, so ``user`` is the name the client
 gives.
 
-Threads: zenoh calls the queryable's callback on its own threads; it makes
-no zenoh call, it reads and bounds the query, refuses at once ("busy") a
-source's commands beyond ``commands_per_s`` (``stop`` excepted), and posts
-the rest to the :mod:`.inbox`, which the event loop drains in slices of a
-few milliseconds.  Heartbeats and RTCM are kept by zenoh in ring channels
+Threads: zenoh calls the queryable's callback on its own threads; it reads
+and bounds the query, refuses there and then ("busy", answered on that
+thread) a source's commands beyond ``commands_per_s`` (``stop`` excepted),
+and posts the rest to the :mod:`.inbox`, which the event loop drains in
+slices of a few milliseconds.  Heartbeats and RTCM are kept by zenoh in ring channels
 and read at a bounded pace by threads of their own (:mod:`.ring_reader`),
 so that a flood costs no Python work beyond that pace.  Each item is
 handled in isolation: an exception from one becomes a refusal (for a
@@ -190,34 +190,47 @@ class ShoreLink:
     # ------------------------------------------------- zenoh's threads: read, bound, post
 
     def _on_query(self, query: Any) -> None:
-        """A ``cmd/**`` query (zenoh's thread): posted, or refused at once."""
+        """A ``cmd/**`` query (zenoh's thread): posted, or refused here at once.
+
+        A refusal made here (over the source's rate, the inbox full, a query that
+        cannot be read) is answered on this thread, without the event loop or the
+        sender's queue: a flood is refused at the pace its own client's traffic
+        is read, and the other clients' replies do not queue behind it."""
         key = ""
         try:
             key = str(query.key_expr)
-            body, att = query.payload, query.attachment
-            size = len(body) if body is not None else 0
+            att = query.attachment
             att_size = len(att) if att is not None else 0
-            item = Query(query, key,
-                         body.to_bytes() if body is not None and size <= MAX_COMMAND_BYTES
-                         else b"", size,
-                         att.to_bytes() if att is not None and att_size <= MAX_ATTACHMENT_BYTES
-                         else b"", att_size)
-            source = requests.peek_user(item.attachment)
-            inbox = self._inbox
-            if key.endswith("/cmd/stop") or self._admit(source):
+            att_b = att.to_bytes() if att is not None and att_size <= MAX_ATTACHMENT_BYTES \
+                else b""
+            source = requests.peek_user(att_b)
+            if not key.endswith("/cmd/stop") and not self._admit(source):
+                self._count("commands_rate_limited")
+                why = (f"busy: more than {self.cfg.commands_per_s:g} commands per second from "
+                       f"shore{':' + source if source else ''}; not acted on")
+            else:
+                body = query.payload
+                size = len(body) if body is not None else 0
+                item = Query(query, key,
+                             body.to_bytes() if body is not None and size <= MAX_COMMAND_BYTES
+                             else b"", size, att_b, att_size)
+                inbox = self._inbox
                 if inbox is not None and inbox.post(item):
                     return
                 why = "busy: too many commands queued" if inbox is not None else \
                     "shore link starting"
-            else:
-                self._count("commands_rate_limited")
-                why = (f"busy: more than {self.cfg.commands_per_s:g} commands per second from "
-                       f"shore{':' + source if source else ''}; not acted on")
         except Exception as exc:  # an unreadable query still gets its reply
             self._count("faults")
             why = f"unreadable query ({type(exc).__name__})"
         self._count("commands_refused_at_once")
-        self._reply(query, key, False, None, None, why)
+        try:
+            query.reply(key, _reply_body(False, None, None, why))
+        except Exception as exc:  # the query already gone, the session closing
+            self._count("send_errors_at_once")
+            log.debug("shore: reply failed: %s", exc)
+        finally:
+            with contextlib.suppress(Exception):
+                query.drop()
 
     def _admit(self, source: str) -> bool:
         """Whether ``source`` may send one more command now (its token bucket:
