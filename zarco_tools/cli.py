@@ -15,8 +15,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from zarco_tools.follow_report import follow_summary
-
 
 def _fmt(v: Any, unit: str = "m") -> str:
     return f"{v:.3f} {unit}" if isinstance(v, (int, float)) else str(v)
@@ -47,6 +45,8 @@ def summary(report: dict[str, Any]) -> str:
                 f"wall = {report['speedup']:.0f}× real time")
         return "\n".join(x for x in (head, hold) if x)
     if "xtrack_rms_m" not in report:
+        from zarco_tools.follow_report import follow_summary
+
         return "\n".join(x for x in (follow_summary(report), hold) if x)
     lines = [
         f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
