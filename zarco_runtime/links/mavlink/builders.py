@@ -19,6 +19,7 @@ from typing import Any
 from zarco_core.messages import (
     Attitude,
     FixQuality,
+    GpsErrorStats,
     GpsFix,
     GpsVelocity,
     NavState,
@@ -41,8 +42,11 @@ FIX_TYPE = {
     FixQuality.RTK_FLOAT: mav.GPS_FIX_TYPE_RTK_FLOAT,
     FixQuality.RTK_FIXED: mav.GPS_FIX_TYPE_RTK_FIXED,
 }
-#: a GpsFix older than this is reported as no fix (s)
+#: a GpsFix older than this is reported as no fix, a GGA's quality or a GST's
+#: errors older than this as unknown (s)
 GPS_STALE_S = 2.0
+#: GPS_RAW_INT's "unknown" satellite count
+SATS_UNKNOWN = 255
 
 #: a builder: the clock time (s) → a pymavlink message, or None
 Builder = Callable[[float], Any]
@@ -73,7 +77,11 @@ class Telemetry:
         self.core = core
         bus = core.bus
         self.nav = bus.latest(NavState)
-        self.gps = bus.latest(GpsFix)
+        #: the newest fix (any sentence), and the newest that says how good it is
+        #: (GGA, GNS: quality, satellites, HDOP, altitude)
+        self.fix: GpsFix | None = None
+        self.quality: GpsFix | None = None
+        self.gst = bus.latest(GpsErrorStats)
         self.vel = bus.latest(GpsVelocity)
         self.att = bus.latest(Attitude)
         self.thrust = bus.latest(ThrusterCommand)
@@ -92,6 +100,15 @@ class Telemetry:
             "SERVO_OUTPUT_RAW": self.servo_output_raw,
             "HOME_POSITION": self.home_position,
         }
+
+    def on_fix(self, g: GpsFix) -> None:
+        """A GpsFix from the receiver.  A receiver sends several sentences per epoch
+        (GGA then RMC, say) and only some carry the satellites, the HDOP, the
+        altitude and the RTK quality: those are kept apart, so that a later RMC
+        does not hide them."""
+        self.fix = g
+        if g.num_sats is not None or g.hdop is not None:
+            self.quality = g
 
     def measure_load(self) -> None:
         """The runtime's CPU load (‰ of one core) since the last call."""
@@ -161,29 +178,51 @@ class Telemetry:
             min(10000, int(10000 * drops / (sent + drops))), errors, 0, 0, 0, 0)
 
     def gps_raw_int(self, now: float) -> Any:
+        """The receiver's fix: position of the newest fix; fix type (RTK float and
+        fixed as 5 and 6), satellites, HDOP (``eph``, HDOP × 100) and altitude
+        (mm above MSL) of the newest GGA/GNS of the last :data:`GPS_STALE_S`;
+        speed and course of the newest velocity; ``h_acc``/``v_acc`` (mm) the
+        1σ horizontal and vertical errors of the newest GST."""
+        t_us = self.usec(now)
         if not self.core.cfg.devices.gps.enabled:
-            return mav.MAVLink_gps_raw_int_message(self.usec(now), mav.GPS_FIX_TYPE_NO_GPS,
+            return mav.MAVLink_gps_raw_int_message(t_us, mav.GPS_FIX_TYPE_NO_GPS,
                                                    0, 0, 0, UINT16_MAX, UINT16_MAX,
-                                                   UINT16_MAX, UINT16_MAX, 255)
-        g = self.gps.value
-        v = self.vel.value
+                                                   UINT16_MAX, UINT16_MAX, SATS_UNKNOWN)
+        q = self.quality
+        if q is not None and now - q.t > GPS_STALE_S:
+            q = None
+        sats = min(SATS_UNKNOWN - 1, q.num_sats) if q is not None and q.num_sats is not None \
+            else SATS_UNKNOWN
+        eph = (min(UINT16_MAX - 1, r_int(q.hdop * 100.0))
+               if q is not None and q.hdop is not None else UINT16_MAX)
+        g = self.fix
         if g is None or g.lat_deg is None or g.lon_deg is None \
                 or not (math.isfinite(g.lat_deg) and math.isfinite(g.lon_deg)):
-            return mav.MAVLink_gps_raw_int_message(self.usec(now), mav.GPS_FIX_TYPE_NO_FIX,
-                                                   0, 0, 0, UINT16_MAX, UINT16_MAX,
-                                                   UINT16_MAX, UINT16_MAX, 255)
-        fix = FIX_TYPE[g.fix] if now - g.t <= GPS_STALE_S else mav.GPS_FIX_TYPE_NO_FIX
+            return mav.MAVLink_gps_raw_int_message(t_us, mav.GPS_FIX_TYPE_NO_FIX,
+                                                   0, 0, 0, eph, UINT16_MAX,
+                                                   UINT16_MAX, UINT16_MAX, sats)
+        if now - g.t > GPS_STALE_S:
+            fix = mav.GPS_FIX_TYPE_NO_FIX
+        else:
+            fix = FIX_TYPE[q.fix if q is not None else g.fix]
+        alt_m = q.alt_m if q is not None and q.alt_m is not None else g.alt_m
         vel = cog = UINT16_MAX
+        v = self.vel.value
         if v is not None and now - v.t <= GPS_STALE_S:
             vel = min(UINT16_MAX - 1, r_int(v.sog_mps * 100.0))
             if v.cog_rad is not None:
                 cog = r_int(math.degrees(v.cog_rad) * 100.0) % 36000
-        eph = (min(UINT16_MAX - 1, r_int(g.hdop * 100.0)) if g.hdop is not None
-               else UINT16_MAX)
+        h_acc = v_acc = 0  # unknown
+        e = self.gst.value
+        if e is not None and now - e.t <= GPS_STALE_S:
+            if e.std_lat_m is not None and e.std_lon_m is not None:
+                h_acc = min(0xFFFFFFFF, r_int(math.hypot(e.std_lat_m, e.std_lon_m) * 1000.0))
+            if e.std_alt_m is not None:
+                v_acc = min(0xFFFFFFFF, r_int(e.std_alt_m * 1000.0))
         return mav.MAVLink_gps_raw_int_message(
-            self.usec(now), fix, r_int(g.lat_deg * 1e7), r_int(g.lon_deg * 1e7),
-            r_int((g.alt_m or 0.0) * 1000.0), eph, UINT16_MAX, vel, cog,
-            g.num_sats if g.num_sats is not None else 255)
+            t_us, fix, r_int(g.lat_deg * 1e7), r_int(g.lon_deg * 1e7),
+            r_int((alt_m or 0.0) * 1000.0), eph, UINT16_MAX, vel, cog, sats,
+            0, h_acc, v_acc)
 
     def global_position_int(self, now: float) -> Any:
         n = self.nav.value

@@ -71,6 +71,7 @@ from zarco_core.component import ComponentContext
 from zarco_core.messages import (
     CommandAck,
     Event,
+    GpsFix,
     GuidanceStatus,
     Mode,
     NavState,
@@ -118,6 +119,7 @@ class MavlinkEndpoint:
         self.text_id = 0
         self.gcs_seen: dict[int, float] = {}
         ctx.listen(Event, self._on_event)
+        ctx.listen(GpsFix, self.telemetry.on_fix)
         ctx.listen(Directive, self._on_directive)
         ctx.listen(GuidanceStatus, self.transfer.on_guidance)
         ctx.listen(VesselStatus, self._on_status)
