@@ -97,6 +97,8 @@ log = logging.getLogger("zarco.mavlink")
 
 #: a GCS heard again after this long is announced again (s)
 GCS_QUIET_S = 5.0
+#: texts remembered for the repeat check
+MAX_TEXTS = 256
 
 
 class MavlinkEndpoint:
@@ -302,8 +304,10 @@ class MavlinkEndpoint:
             core.counters.statustext_repeats += 1
             return
         self.texts[e.text] = now
-        if len(self.texts) > 256:
+        if len(self.texts) > MAX_TEXTS:
             self.texts = {k: v for k, v in self.texts.items() if now - v < TEXT_REPEAT_S}
+            if len(self.texts) > MAX_TEXTS:  # a flood of distinct texts: forget them
+                self.texts = {e.text: now}
         sev = event_severity(e.kind, e.text)
         chunks = text_chunks(e.text)
         tid = 0
