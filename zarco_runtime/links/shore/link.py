@@ -2,8 +2,12 @@
 
 Out: ``zarco/<vessel>/state`` at ``state_hz``, ``health`` with every status
 snapshot (1 Hz), ``auv`` with every AUV track update, ``event`` with every
-event (payloads: :mod:`.telemetry`).  In: ``cmd/<name>`` queries, each read
-and bounded (:mod:`.requests`), sent to the supervisor as a
+event (payloads: :mod:`.telemetry`), ``map`` when it changes and every 10 s
+(:mod:`.map_info`; also the reply to a query on it).  A query on ``access``
+is answered ``{"role": "operator"}``: access control lets only operators
+query it, so a shore tool learns whether its credentials may command before
+offering commands.  In: ``cmd/<name>`` queries, each read and bounded
+(:mod:`.requests`), sent to the supervisor as a
 :class:`~zarco_core.messages.Command` from ``shore:<user>`` and answered
 with exactly one reply ``{"ok", "id", "mode", "reason"}``, whatever the
 payload; the operator heartbeat ``operator`` (``{"t", "user"}``) becomes an
@@ -43,12 +47,13 @@ import contextlib
 import itertools
 import json
 import logging
+import math
 import threading
 from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 from drivers.nmea_device import RateLimitedLog
-from zarco_core.auv_messages import AuvTrack
+from zarco_core.auv_messages import AuvTrack, BuoyStatus
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
@@ -65,6 +70,7 @@ from zarco_core.messages import (
 from zarco_runtime.guidance.directive import Directive
 from zarco_runtime.links.shore import requests, telemetry
 from zarco_runtime.links.shore.inbox import Corrections, Heartbeat, Inbox, Item, Query
+from zarco_runtime.links.shore.map_info import MAP_PERIOD_S, MapInfo
 from zarco_runtime.links.shore.requests import (
     MAX_ATTACHMENT_BYTES,
     MAX_COMMAND_BYTES,
@@ -111,6 +117,12 @@ class ShoreLink:
         self.thrust = bus.latest(ThrusterCommand)
         self.directive = bus.latest(Directive)
         self.status = bus.latest(VesselStatus)
+        self.buoy = bus.latest(BuoyStatus)
+        self.map = MapInfo(cfg, self.frame)
+        #: the last ``map`` object sent (JSON; read by zenoh's threads to answer queries)
+        self._map_json = ""
+        self._map_key = ""
+        self._map_sent_t = -math.inf
         self.counters: Counter[str] = Counter()  # written on the event loop only
         #: written on zenoh's threads, under its lock
         self._thread_counters: Counter[str] = Counter()
@@ -165,6 +177,19 @@ class ShoreLink:
 
     def _on_status(self, st: VesselStatus) -> None:
         self._put("health", telemetry.health(self._utc(st.t), st, self.link_counters()))
+        self._map_update(st.t)
+
+    def _map_update(self, now: float) -> None:
+        """Send the ``map`` object if it changed, or every :data:`MAP_PERIOD_S`."""
+        obj = self.map.build(0.0, self.status.value, self.directive.value, self.buoy.value)
+        key = json.dumps(obj, separators=(",", ":"))
+        if key == self._map_key and now - self._map_sent_t < MAP_PERIOD_S:
+            return
+        obj["t"] = round(self._utc(now), 3)
+        self._map_key = key
+        self._map_json = json.dumps(obj, separators=(",", ":"))
+        self._map_sent_t = now
+        self._put("map", obj)
 
     def _on_event(self, ev: Event) -> None:
         self._put("event", telemetry.event(self._utc(ev.t), ev))
@@ -225,6 +250,22 @@ class ShoreLink:
         self._count("commands_refused_at_once")
         try:
             query.reply(key, _reply_body(False, None, None, why))
+        except Exception as exc:  # the query already gone, the session closing
+            self._count("send_errors_at_once")
+            log.debug("shore: reply failed: %s", exc)
+        finally:
+            with contextlib.suppress(Exception):
+                query.drop()
+
+    def _on_info_query(self, query: Any) -> None:
+        """A query on ``map`` (the latest map object) or ``access`` (operators only,
+        by access control: the answer says the asker may command); zenoh's thread,
+        answered there (nothing to compute)."""
+        try:
+            key = str(query.key_expr)
+            body = json.dumps({"role": "operator"}) if key.endswith("/access") else \
+                self._map_json or json.dumps({"t": None})
+            query.reply(key, body)
         except Exception as exc:  # the query already gone, the session closing
             self._count("send_errors_at_once")
             log.debug("shore: reply failed: %s", exc)
@@ -335,6 +376,8 @@ class ShoreLink:
         try:
             pubs = {k: session.declare_publisher(f"{self.key}/{k}") for k in TELEMETRY}
             session.declare_queryable(f"{self.key}/cmd/**", self._on_query)
+            session.declare_queryable(f"{self.key}/map", self._on_info_query)
+            session.declare_queryable(f"{self.key}/access", self._on_info_query)
             subs = [session.declare_subscriber(f"{self.key}/operator",
                                                zenoh.handlers.RingChannel(HEARTBEAT_RING)),
                     session.declare_subscriber(f"{self.key}/rtcm",
@@ -365,6 +408,7 @@ class ShoreLink:
             self.sender.start(pubs)
             log.info("shore link: vessel %s listening on %s (auth %s)", self.cfg.vessel,
                      ", ".join(self.cfg.listen), self.cfg.auth)
+            self._map_update(self.clock.now())
             period = 1.0 / self.cfg.state_hz
             k = 0
             t0 = self.clock.now()
