@@ -188,7 +188,7 @@ def test_telemetry_payloads_follow_the_contract() -> None:
 HOSTILE_PAYLOADS: list[tuple[bytes, str]] = [
     (b"[" * 30000, "nested deeper"),
     (b'{"a":' * 5000, "nested deeper"),
-    (b'{"a": [[[[[[1]]]]]]}', "nested deeper than 6"),
+    (b'{"a": [[[[[[[[1]]]]]]]]}', "nested deeper than 8"),
     (b"\xff\xfe{}", "not UTF-8 JSON"),
     (b"not json", "not UTF-8 JSON"),
     (b"[1, 2]", "must be a JSON object, got an array"),

@@ -41,7 +41,7 @@ MAX_ATTACHMENT_BYTES = 1024
 MAX_HEARTBEAT_BYTES = 1024
 #: objects and arrays nested deeper than this are refused (a mission's
 #: waypoints are 3: the object, the list, a point)
-MAX_NESTING = 6
+MAX_NESTING = 8
 #: a user name or a command id: at most this many printable characters
 MAX_NAME_CHARS = 64
 NAME_RE = re.compile(r"[a-z0-9_]{1,32}")
