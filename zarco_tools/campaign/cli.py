@@ -142,7 +142,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         print(format_effects(effects))
     files = [str(out / "results.jsonl"), str(out / "summary.json")]
     if not args.no_plots and records:
-        files += plot_campaign(out, records, checks, f"{spec.name} seed {args.seed}")
+        files += plot_campaign(out, records, checks, f"{spec.name} seed {args.seed}",
+                               spec.targets)
     print("\n" + "written: " + ", ".join(files))
     return 0
 

@@ -16,16 +16,21 @@ import numpy as np
 
 from zarco_tools.campaign.tables import applies
 
-#: figures plotted, with the check each belongs to (those present are drawn)
+#: figures plotted: name, the check it belongs to, its target's name (those
+#: present are drawn)
 FIGURES = (
-    ("distance_median_m", "median"), ("distance_p95_m", "p95"),
-    ("turn peak (m)", "turn"), ("turn recovery (s)", "turn"),
-    ("uturn peak (m)", "uturn"), ("uturn recovery (s)", "uturn"),
-    ("arc peak (m)", "arc"), ("lost_max_s", "lost"),
-    ("sound_speed_error_max_pct", "sound_speed"),
-    ("xtrack_rms_m", "rms"), ("xtrack_p95_m", "p95"),
-    ("hold_distance_p95_m", "p95"), ("hold_distance_max_m", "max"),
+    ("distance_median_m", "median", "distance_median_m"),
+    ("distance_p95_m", "p95", "distance_p95_m"),
+    ("turn peak (m)", "turn", "turn_max_m"), ("turn recovery (s)", "turn", "turn_recovery_s"),
+    ("uturn peak (m)", "uturn", "uturn_max_m"),
+    ("uturn recovery (s)", "uturn", "uturn_recovery_s"),
+    ("arc peak (m)", "arc", "arc_max_m"), ("lost_max_s", "lost", "lost_max_s"),
+    ("sound_speed_error_max_pct", "sound_speed", "sound_speed_error_pct"),
+    ("xtrack_rms_m", "rms", "xtrack_rms_m"), ("xtrack_p95_m", "p95", "xtrack_p95_m"),
+    ("hold_distance_p95_m", "p95", "hold_p95_m"), ("hold_distance_max_m", "max", "hold_max_m"),
 )
+#: factors plotted at most (those that move the miss rates most)
+MAX_FACTORS = 10
 #: where an unrecovered manoeuvre is drawn (s)
 UNRECOVERED_S = 150.0
 
@@ -34,7 +39,7 @@ def figure_values(rec: dict[str, Any]) -> dict[str, float]:
     """The plotted figures of one mission (the worst manoeuvre of each kind)."""
     fig = rec.get("figures") or {}
     out: dict[str, float] = {}
-    for name, _check in FIGURES:
+    for name, _check, _target in FIGURES:
         v = fig.get(name)
         if isinstance(v, (int, float)) and math.isfinite(v):
             out[name] = float(v)
@@ -101,23 +106,29 @@ def format_effects(effects: dict[str, list[dict[str, Any]]], top: int = 3) -> st
 
 
 def plot_campaign(out_dir: Path, records: list[dict[str, Any]], checks: list[str],
-                  title: str) -> list[str]:
-    """``figures.png`` (every plotted figure against every numeric factor; a
-    mission that missed the figure's target in red) and ``breaks.png`` (the
-    miss-rate differences as a map); returns the files written."""
+                  title: str, targets: dict[str, float] | None = None) -> list[str]:
+    """``figures.png`` (every plotted figure against the drawn factors that move
+    the miss rates most; a mission that missed the figure's target in red, its
+    target dashed) and ``breaks.png`` (the miss-rate differences as a map);
+    returns the files written."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    facs = numeric_factors(records)
+    eff = factor_effects(records, checks)
+    weight: dict[str, float] = {}
+    for rows in eff.values():
+        for e in rows:
+            weight[e["factor"]] = max(weight.get(e["factor"], 0.0), abs(e["difference"]))
+    facs = sorted(numeric_factors(records), key=lambda f: -weight.get(f, 0.0))[:MAX_FACTORS]
     vals = [figure_values(r) for r in records]
-    figs = [(n, c) for n, c in FIGURES if any(n in v for v in vals)]
+    figs = [(n, c, t) for n, c, t in FIGURES if any(n in v for v in vals)]
     written: list[str] = []
     if facs and figs:
         fig, axs = plt.subplots(len(figs), len(facs), squeeze=False,
                                 figsize=(2.1 * len(facs), 1.8 * len(figs)))
-        for i, (name, check) in enumerate(figs):
+        for i, (name, check, target) in enumerate(figs):
             for j, f in enumerate(facs):
                 ax = axs[i][j]
                 pts = [(r["factors"].get(f), v[name], check in r.get("fails", {}),
@@ -129,19 +140,21 @@ def plot_campaign(out_dir: Path, records: list[dict[str, Any]], checks: list[str
                     y = [p[1] for p in pts]
                     c = ["tab:red" if p[2] else "0.6" if p[3] else "tab:blue" for p in pts]
                     ax.scatter(x, y, s=6, c=c)
+                if targets and target in targets:
+                    ax.axhline(targets[target], color="k", lw=0.6, ls="--")
                 ax.tick_params(labelsize=6)
                 if i == len(figs) - 1:
                     ax.set_xlabel(f, fontsize=7)
                 if j == 0:
                     ax.set_ylabel(name, fontsize=7)
         fig.suptitle(f"{title}: figures against the drawn factors (red: the mission missed "
-                     "that target; grey: exempt)", fontsize=9)
+                     "that target; grey: exempt; dashed: the target)", fontsize=9)
         fig.tight_layout()
         p = out_dir / "figures.png"
         fig.savefig(p, dpi=90)
         plt.close(fig)
         written.append(str(p))
-    eff = factor_effects(records, checks)
+    facs = numeric_factors(records)
     if eff and facs:
         rows = list(eff)
         m = np.full((len(rows), len(facs)), np.nan)
