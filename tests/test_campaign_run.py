@@ -143,3 +143,32 @@ def test_a_line_cut_short_by_a_kill_is_dropped_and_its_mission_run_again(
     store.append({**rec, "index": 1})
     store.close()
     assert [json.loads(x)["index"] for x in p.read_text().splitlines()] == [0, 1]
+
+
+def test_the_printed_command_reproduces_a_mission(pool: Path, tmp_path: Path) -> None:
+    import shlex
+
+    summary = json.loads((pool / "summary.json").read_text())
+    rec = {r["index"]: r for r in lines(pool)}
+    worst = summary["worst"][0] if summary["worst"] else None
+    k = worst["index"] if worst else 0
+    cmd = worst["command"] if worst else None
+    if cmd is None:  # every mission passed: reproduce mission 0 from its record
+        from zarco_tools.campaign.draw import Mission
+
+        r0 = rec[0]
+        cmd = Mission(0, r0["family"], r0["scenario_seed"], r0["overrides"]).command(
+            str(ROOT / "config" / "scenarios" / "follow_turn.toml"),
+            ["scenario.max_duration_s=40"])
+    words = shlex.split(cmd)
+    assert words[:2] == ["zarco", "sim"]
+    report = tmp_path / "r.json"
+    old = Path.cwd()
+    try:
+        os.chdir(ROOT)  # the command names the scenario relative to where it was printed
+        assert zarco([*words[1:], "-q", "--report", str(report)]) == 0
+    finally:
+        os.chdir(old)
+    got = json.loads(report.read_text())
+    for key, v in rec[k]["figures"].items():
+        assert got.get(key) == v, key
