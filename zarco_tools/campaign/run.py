@@ -65,6 +65,10 @@ def run_local(spec: CampaignSpec, seed: int, indices: list[int], sets: list[str]
     """The missions' records as they complete, on ``jobs`` local processes
     (fresh interpreters: spawned, not forked).  Closing the iterator early
     cancels what has not started."""
+    # one thread per worker for numpy's BLAS, as Dask's workers have: the workers
+    # are the parallelism (the spawned workers take this process's environment)
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
     ctx = multiprocessing.get_context("spawn")
     ex = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
     finished = False
