@@ -18,7 +18,7 @@ from typing import Any
 from zarco_runtime.links.mavlink.builders import Builder
 from zarco_runtime.links.mavlink.core import Core
 from zarco_runtime.links.mavlink.link import Link
-from zarco_runtime.links.mavlink.protocol import mav
+from zarco_runtime.links.mavlink.protocol import mav, whole
 from zarco_runtime.links.mavlink.settings import MAX_RATE_HZ, STREAMS
 
 log = logging.getLogger("zarco.mavlink")
@@ -140,12 +140,13 @@ class Streams:
         if msg_id == mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
             link.send(self.autopilot_version())
         elif msg_id == mav.MAVLINK_MSG_ID_MESSAGE_INTERVAL:
-            name = MSG_NAME.get(int(p2))
-            if name is None:
+            asked = whole(p2, 0, 0xFFFF)
+            name = MSG_NAME.get(asked) if asked is not None else None
+            if asked is None or name is None:
                 return int(mav.MAV_RESULT_DENIED)
             st = link.streams[name]
             us = int(st.interval_s * 1e6) if st.interval_s > 0 else -1
-            link.send(mav.MAVLink_message_interval_message(int(p2), us))
+            link.send(mav.MAVLink_message_interval_message(asked, us))
         elif msg_id in MSG_NAME:
             msg = self.build(MSG_NAME[msg_id], now)
             if msg is None:
