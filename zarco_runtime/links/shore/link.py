@@ -2,7 +2,11 @@
 
 Out: ``zarco/<vessel>/state`` at ``state_hz``, ``health`` with every status
 snapshot (1 Hz), ``auv`` with every AUV track update, ``event`` with every
-event (payloads: :mod:`.telemetry`).  In: ``cmd/<name>`` queries, each sent
+event (payloads: :mod:`.telemetry`), ``map`` when it changes and every 10 s
+(:mod:`.map_info`; also the reply to a query on it).  A query on ``access``
+is answered ``{"role": "operator"}``: access control lets only operators
+query it, so a shore tool learns whether its credentials may command before
+offering commands.  In: ``cmd/<name>`` queries, each sent
 to the supervisor as a :class:`~zarco_core.messages.Command` from
 ``shore:<user>`` and answered with exactly one reply ``{"ok", "id", "mode",
 "reason"}``; the operator heartbeat ``operator`` (``{"t", "user"}``) becomes an
@@ -35,13 +39,14 @@ import contextlib
 import itertools
 import json
 import logging
+import math
 import queue
 import threading
 from collections import Counter, deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from zarco_core.auv_messages import AuvTrack
+from zarco_core.auv_messages import AuvTrack, BuoyStatus
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
@@ -57,6 +62,7 @@ from zarco_core.messages import (
 )
 from zarco_runtime.guidance.directive import Directive
 from zarco_runtime.links.shore import telemetry
+from zarco_runtime.links.shore.map_info import MAP_PERIOD_S, MapInfo
 from zarco_runtime.links.shore.zenoh_config import TELEMETRY, boat_config, prefix
 from zarco_runtime.supervision.local import LocalCommands
 
@@ -141,6 +147,12 @@ class ShoreLink:
         self.thrust = bus.latest(ThrusterCommand)
         self.directive = bus.latest(Directive)
         self.status = bus.latest(VesselStatus)
+        self.buoy = bus.latest(BuoyStatus)
+        self.map = MapInfo(cfg, self.frame)
+        #: the last ``map`` object sent (JSON; read by zenoh's threads to answer queries)
+        self._map_json = ""
+        self._map_key = ""
+        self._map_sent_t = -math.inf
         self.counters: Counter[str] = Counter()  # written on the event loop only
         #: written by the sender thread only (keys fixed: safe to copy from the loop)
         self.sent: dict[str, int] = {**{f"{k}_sent": 0 for k in TELEMETRY},
@@ -171,6 +183,19 @@ class ShoreLink:
     def _on_status(self, st: VesselStatus) -> None:
         self._put("health", telemetry.health(self._utc(st.t), st,
                                              {**self.counters, **self.sent}))
+        self._map_update(st.t)
+
+    def _map_update(self, now: float) -> None:
+        """Send the ``map`` object if it changed, or every :data:`MAP_PERIOD_S`."""
+        obj = self.map.build(0.0, self.status.value, self.directive.value, self.buoy.value)
+        key = json.dumps(obj, separators=(",", ":"))
+        if key == self._map_key and now - self._map_sent_t < MAP_PERIOD_S:
+            return
+        obj["t"] = round(self._utc(now), 3)
+        self._map_key = key
+        self._map_json = json.dumps(obj, separators=(",", ":"))
+        self._map_sent_t = now
+        self._put("map", obj)
 
     def _on_event(self, ev: Event) -> None:
         self._put("event", telemetry.event(self._utc(ev.t), ev))
@@ -231,6 +256,21 @@ class ShoreLink:
                                "reason": "busy: too many commands queued"})
             with contextlib.suppress(queue.Full):  # else zenoh drops it (no reply)
                 self._out.put_nowait(("reply", query, key, busy))
+
+    def _on_info_query(self, query: Any) -> None:  # a zenoh thread: no zenoh call here
+        """A query on ``map`` (the latest map object) or ``access`` (operators only,
+        by access control: the answer says the asker may command)."""
+        try:
+            key = str(query.key_expr)
+        except Exception as exc:  # let zenoh drop it
+            log.debug("shore: unreadable query: %s", exc)
+            return
+        if key.endswith("/access"):
+            body = json.dumps({"role": "operator"})
+        else:
+            body = self._map_json or json.dumps({"t": None})
+        with contextlib.suppress(queue.Full):  # else zenoh drops it (no reply)
+            self._out.put_nowait(("reply", query, key, body))
 
     def _on_sample(self, kind: str) -> Callable[[Any], None]:
         def cb(sample: Any) -> None:  # a zenoh thread
@@ -333,6 +373,8 @@ class ShoreLink:
         try:
             pubs = {k: session.declare_publisher(f"{self.key}/{k}") for k in TELEMETRY}
             session.declare_queryable(f"{self.key}/cmd/**", self._on_query)
+            session.declare_queryable(f"{self.key}/map", self._on_info_query)
+            session.declare_queryable(f"{self.key}/access", self._on_info_query)
             session.declare_subscriber(f"{self.key}/operator", self._on_sample("operator"))
             session.declare_subscriber(f"{self.key}/rtcm", self._on_sample("rtcm"))
         except BaseException:
@@ -362,6 +404,7 @@ class ShoreLink:
             sender.start()
             log.info("shore link: vessel %s listening on %s (auth %s)", self.cfg.vessel,
                      ", ".join(self.cfg.listen), self.cfg.auth)
+            self._map_update(self.clock.now())
             period = 1.0 / self.cfg.state_hz
             k = 0
             t0 = self.clock.now()
