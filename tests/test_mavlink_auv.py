@@ -215,9 +215,12 @@ def test_a_ground_station_sees_the_boat_and_the_simulated_auv(tmp_path: Any) -> 
     drawn at random: the boat and the AUV are two vehicles, the AUV where the
     simulator holds it (hovering at its first waypoint for its start delay) as
     the passive tracker finds it, 10 m deep."""
+    import socket
     import subprocess
     import sys
     from pathlib import Path
+
+    from pymavlink import mavutil
 
     from zarco_core.geodesy import LocalFrame
     from zarco_tools.scenario import load_scenario
@@ -234,8 +237,11 @@ def test_a_ground_station_sees_the_boat_and_the_simulated_auv(tmp_path: Any) -> 
     frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
     hover = scn.auv.waypoints[0]
     gcs = Gcs()
+    with socket.socket() as sk:
+        sk.bind(("127.0.0.1", 0))
+        tcp_port = sk.getsockname()[1]
     cmd = [sys.executable, "-m", "zarco_runtime.cli", "sim", str(path), "--realtime", "-q",
-           "--set", f'runtime.mavlink.url="{gcs.url}"']
+           "--set", f'runtime.mavlink.url=["{gcs.url}", "tcpin:127.0.0.1:{tcp_port}"]']
     for s in sets:
         cmd += ["--set", s]
     boat = subprocess.Popen(cmd, cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -260,6 +266,22 @@ def test_a_ground_station_sees_the_boat_and_the_simulated_auv(tmp_path: Any) -> 
             n, e = frame.to_ned(m.lat / 1e7, m.lon / 1e7)
             assert math.hypot(n - hover[0], e - hover[1]) < 10.0, (n, e, hover)
             assert m.relative_alt == -round(scn.runtime.tracker.auv_depth_m * 1000.0)
+        # a ground station connecting now, with the AUV tracked, hears the boat first
+        # (MAVProxy and QGroundControl make the first vehicle heard their own)
+        late = mavutil.mavlink_connection(f"tcp:127.0.0.1:{tcp_port}", source_system=254,
+                                          source_component=190)
+        try:
+            first = late.recv_match(type="HEARTBEAT", blocking=True, timeout=10.0)
+            assert first is not None and first.get_srcSystem() == 1, first
+            kinds_late: dict[int, int] = {}
+            end = time.monotonic() + 10.0
+            while 2 not in kinds_late and time.monotonic() < end:
+                hb = late.recv_match(type="HEARTBEAT", blocking=True, timeout=1.0)
+                if hb is not None:
+                    kinds_late[hb.get_srcSystem()] = hb.type
+            assert kinds_late.get(2) == mav.MAV_TYPE_SUBMARINE, kinds_late
+        finally:
+            late.close()
         gcs.mav.command_long_send(2, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0,
                                   1, 0, 0, 0, 0, 0, 0)
         ack = gcs.wait(lambda m: m.get_type() == "COMMAND_ACK"

@@ -6,7 +6,9 @@ System ``[mavlink] auv_system_id`` (default the boat's + 1), component 1
 autopilot's heartbeat).  While the tracker publishes a track (it does at
 least once a second once it has one), on every connection:
 
-* HEARTBEAT at 1 Hz: MAV_TYPE_SUBMARINE, MAV_AUTOPILOT_GENERIC, ``base_mode``
+* HEARTBEAT right after each of the boat's (1 Hz; after, so that a ground
+  station hears the boat first and makes it its active vehicle):
+  MAV_TYPE_SUBMARINE, MAV_AUTOPILOT_GENERIC, ``base_mode``
   0 (the boat does not command the AUV), ``system_status`` from the track:
   ACTIVE while tracking (or turning), STANDBY while acquiring, CRITICAL when
   stale, EMERGENCY when lost;
@@ -37,8 +39,6 @@ from zarco_runtime.links.mavlink.core import Core
 from zarco_runtime.links.mavlink.link import Link, Source
 from zarco_runtime.links.mavlink.protocol import UINT16_MAX, mav
 
-#: the AUV's heartbeat period (s)
-HEARTBEAT_S = 1.0
 #: no track update for this long: the AUV falls silent (s)
 QUIET_S = 3.0
 #: GLOBAL_POSITION_INT at most this often (s)
@@ -92,7 +92,6 @@ class AuvSystem:
         self.depth_m = core.cfg.tracker.auv_depth_m
         self.track: AuvTrack | None = None
         self.track_t = -math.inf  # clock time of the last update (s)
-        self.next_hb = -math.inf
         self.position_t = -math.inf
         self.heartbeats = 0
         self.positions = 0
@@ -100,30 +99,22 @@ class AuvSystem:
 
     def on_track(self, tr: AuvTrack) -> None:
         now = self.core.clock.now()
-        quiet = now - self.track_t > QUIET_S
         self.track, self.track_t = tr, now
-        if quiet:  # heard again: say so at once
-            self.next_hb = now
-            self.tick(now)
         if now - self.position_t >= POSITION_MIN_S and self.position(tr) is not None:
             self.position_t = now
             self.positions += 1
             for ln in self.core.links:  # a message object per link
                 ln.send(self.position(tr), reply=False, source=self.source)
 
-    def tick(self, now: float) -> float:
-        """The heartbeat, when due and while the track is heard; the next time it
-        is due."""
+    def after_boat_heartbeat(self, link: Link) -> None:
+        """The AUV's heartbeat on ``link``, right after the boat's (so a ground
+        station hears the boat first and makes it its vehicle), while the track
+        is heard."""
         tr = self.track
-        if tr is None or now - self.track_t > QUIET_S:
-            return now + HEARTBEAT_S
-        if now >= self.next_hb:
-            self.next_hb = max(self.next_hb + HEARTBEAT_S, now)
-            self.heartbeats += 1
-            for ln in self.core.links:
-                if ln.connected:
-                    ln.send(self.heartbeat(tr), reply=False, source=self.source)
-        return self.next_hb
+        if tr is None or self.core.clock.now() - self.track_t > QUIET_S:
+            return
+        self.heartbeats += 1
+        link.send(self.heartbeat(tr), source=self.source)
 
     def heartbeat(self, tr: AuvTrack) -> Any:
         return mav.MAVLink_heartbeat_message(

@@ -112,12 +112,12 @@ class MavlinkEndpoint:
         self.core = core = Core(cfg, bus, clock, ctx)
         self.telemetry = Telemetry(core)
         self.transfer = MissionTransfer(core)
+        self.auv = AuvSystem(core)
         self.streams = Streams(core, {**self.telemetry.builders(),
                                       "MISSION_CURRENT": lambda now: self.transfer.current()},
-                               self.telemetry.autopilot_version)
+                               self.telemetry.autopilot_version, self.auv.after_boat_heartbeat)
         self.commands = Commands(core, self.streams, self.transfer)
         self.params = ParamProtocol(core)
-        self.auv = AuvSystem(core)
         self.rtcm = RtcmReassembler()
         self.dir_seq = -1
         self.unsigned_t: dict[tuple[int, str], float] = {}
@@ -194,7 +194,7 @@ class MavlinkEndpoint:
                 raise core.failure  # fails the component (restarted)
             now = clock.now()
             self._poll(now)
-            await clock.sleep_until(min(self.streams.send_due(now), self.auv.tick(now)))
+            await clock.sleep_until(self.streams.send_due(now))
 
     def _poll(self, now: float) -> None:
         for block in self.rtcm.poll(now):

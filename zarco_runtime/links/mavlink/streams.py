@@ -6,7 +6,8 @@ changes them with SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM (ArduPilot's
 groups) or asks for one message with REQUEST_MESSAGE.  Telemetry goes on a
 connection's telemetry queue (the oldest dropped when a link cannot keep up),
 except the HEARTBEAT and MISSION_CURRENT, which keep their order with the
-replies."""
+replies.  Another system's heartbeat (the AUV's) follows the boat's on each
+link, so that a ground station hears the boat first and makes it its vehicle."""
 
 from __future__ import annotations
 
@@ -49,13 +50,16 @@ class Streams:
     """The per-connection schedules and the requests that change them."""
 
     def __init__(self, core: Core, builders: dict[str, Builder],
-                 autopilot_version: Callable[[], Any]) -> None:
+                 autopilot_version: Callable[[], Any],
+                 after_heartbeat: Callable[[Link], None] | None = None) -> None:
         missing = set(STREAMS) - set(builders)
         if missing:
             raise ValueError(f"no builder for {', '.join(sorted(missing))}")
         self.core = core
         self.builders = builders
         self.autopilot_version = autopilot_version
+        #: called with the link after each of the boat's heartbeats on it
+        self.after_heartbeat = after_heartbeat
 
     def add(self, link: Link, now: float) -> None:
         """Give ``link`` the default schedule, starting at ``now``."""
@@ -100,6 +104,8 @@ class Streams:
         # in order with the replies: the heartbeat, and MISSION_CURRENT (also sent
         # as a reply at every change, so a queued older one must not follow it)
         link.send(msg, reply=name in ("HEARTBEAT", "MISSION_CURRENT"))
+        if name == "HEARTBEAT" and self.after_heartbeat is not None:
+            self.after_heartbeat(link)
 
     # ------------------------------------------------------------ requests
 
