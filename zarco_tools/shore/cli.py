@@ -7,14 +7,15 @@ armed or not; ``arm``, ``disarm``, ``stop``, ``mode``, ``mission FILE``,
 ``follow``, ``resume``, ``param NAME VALUE`` send one command and print the
 boat's acknowledgement or its reason for refusing; ``thrust`` is manual
 teleoperation (renews the lease until stopped); ``rtcm SOURCE`` relays RTK
-corrections.
+corrections; ``web`` serves the live map to a browser.
 
 The boat boots disarmed: nothing moves until ``zarco shore arm`` is accepted
 (it needs a valid position and heading, the thruster controller answering and
 no failsafe active, and says which is missing otherwise).  ``disarm`` and
-``stop`` go idle and disarmed.  ``status``, ``thrust`` and ``rtcm`` publish the
-operator heartbeat while they run (the boat's ``link lost`` failsafe watches
-it); one-shot commands do not, so that a single command does not arm it.
+``stop`` go idle and disarmed.  ``status``, ``thrust``, ``rtcm`` (and ``web``
+while a page is open) publish the operator heartbeat while they run (the
+boat's ``link lost`` failsafe watches it); one-shot commands do not, so that
+a single command does not arm it.
 
 Exit status: 0 done / accepted; 1 refused by the boat; 2 configuration or
 connection problem; 3 no reply (not an operator on that boat, or the vessel
@@ -420,3 +421,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     r.add_argument("--report-s", type=float, default=5.0, metavar="S",
                    help="progress line every S seconds (stderr)")
     r.set_defaults(shore_func=cmd_rtcm)
+
+    from zarco_tools.shore.web.cli import add_parser as add_web
+
+    add_web(ss, common)

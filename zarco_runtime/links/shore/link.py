@@ -347,11 +347,14 @@ class ShoreLink:
             return
         cid = r.id or f"shore-{next(_ids)}"
         source = f"shore:{r.user}" if r.user else "shore"
-        task = asyncio.ensure_future(self._send_command(q, r.name, r.args, source, cid))
+        # the raw payload: the supervisor's command schema types it (a refusal
+        # naming the field is acknowledged on the bus, so it is recorded too)
+        task = asyncio.ensure_future(self._send_command(q, r.name, q.payload or b"{}", source,
+                                                        cid))
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
 
-    async def _send_command(self, q: Query, name: str, args: dict[str, Any],
+    async def _send_command(self, q: Query, name: str, args: bytes,
                             source: str, cid: str) -> None:
         try:
             ack = await self.commands.send(name, args, source=source, cmd_id=cid)
