@@ -301,7 +301,7 @@ class MavlinkEndpoint:
         self.dir_seq = d.seq
         core = self.core
         core.mode = d.mode
-        core.armed = d.mode is not Mode.IDLE
+        core.armed = d.armed  # the supervisor's flag (idle may be armed)
         self.transfer.on_directive(d)
 
     def _on_event(self, e: Event) -> None:
