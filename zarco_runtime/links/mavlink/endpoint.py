@@ -60,7 +60,6 @@ the link alive).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import math
 from collections.abc import Callable
@@ -71,12 +70,9 @@ from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
 from zarco_core.messages import (
-    CommandAck,
     Event,
     GpsFix,
     GuidanceStatus,
-    Mode,
-    NavState,
     OperatorHeartbeat,
     RtcmCorrections,
     VesselStatus,
@@ -129,8 +125,6 @@ class MavlinkEndpoint:
         ctx.listen(Directive, self._on_directive)
         ctx.listen(GuidanceStatus, self.transfer.on_guidance)
         ctx.listen(VesselStatus, self._on_status)
-        ctx.listen(CommandAck, self._on_ack)
-        ctx.listen(NavState, self._on_nav)
         ctx.listen(AuvTrack, self.auv.on_track)
         t, cm, p = self.transfer, self.commands, self.params
         self._handlers: dict[str, Callable[[Link, Any], None]] = {
@@ -277,31 +271,14 @@ class MavlinkEndpoint:
 
     # ============================================================ bus → GCS
 
-    def _on_nav(self, n: NavState) -> None:
-        core = self.core
-        if core.home is None and n.pos_valid and math.isfinite(n.lat_deg) \
-                and math.isfinite(n.lon_deg):
-            core.home = (n.lat_deg, n.lon_deg)  # as the supervisor: the first valid position
-
     def _on_status(self, st: VesselStatus) -> None:
-        core = self.core
-        core.status = st
-        core.armed = st.armed
-        with contextlib.suppress(ValueError):
-            core.mode = Mode(st.mode)
+        self.core.status = st
         self.telemetry.measure_load()
-
-    def _on_ack(self, a: CommandAck) -> None:
-        if a.ok and a.name == "arm":
-            self.core.armed = True
 
     def _on_directive(self, d: Directive) -> None:
         if d.seq == self.dir_seq:
             return
         self.dir_seq = d.seq
-        core = self.core
-        core.mode = d.mode
-        core.armed = d.mode is not Mode.IDLE
         self.transfer.on_directive(d)
 
     def _on_event(self, e: Event) -> None:
