@@ -33,6 +33,7 @@ MAVLink                         supervisor
 ==============================  =======================================================
 mission upload (MISSION_COUNT,  ``mission {"waypoints", "speed_mps", "start": false}``
 MISSION_ITEM_INT …)             (:mod:`.mission`); MISSION_ACK accepted or refused
+MISSION_CLEAR_ALL, 0 items      ``mission {"clear": true}`` (refused while it runs)
 MAV_CMD_MISSION_START           ``mode {"mode": "lines"}`` (starts the loaded mission)
 COMPONENT_ARM_DISARM            ``arm`` / ``disarm`` (disarmed is idle: zero thrust)
 DO_SET_MODE, SET_MODE           ``mode`` of the custom mode (:mod:`.protocol`)
@@ -43,10 +44,13 @@ GPS_RTCM_DATA                   RtcmCorrections(source="mavlink"), blocks reasse
 HEARTBEAT from a GCS            OperatorHeartbeat(link="mavlink") (``failsafe.link``)
 ==============================  =======================================================
 
+Arguments are built with the typed command schema (:mod:`zarco_core.commands`).
 COMMAND_ACK results: ACCEPTED; TEMPORARILY_REJECTED when the supervisor refuses
 (its reason follows as a STATUSTEXT); DENIED for arguments the boat does not
-take; UNSUPPORTED for commands it does not know; FAILED when the supervisor did
-not answer.  A MANUAL_CONTROL is passed on when it changes the thrust or every
+take (the schema's field and reason follow as a STATUSTEXT); UNSUPPORTED for
+commands it does not know; FAILED when the supervisor did not answer.  Mode,
+armed and home are the supervisor's (its VesselStatus), never copies of the
+endpoint's own.  A MANUAL_CONTROL is passed on when it changes the thrust or every
 0.2 s, so that the lease (``supervisor.manual_lease_s``) lasts while the GCS
 sends and ends when it stops.
 
