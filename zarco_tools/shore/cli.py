@@ -6,7 +6,8 @@
 ``stop``, ``mode``, ``mission FILE``, ``follow``, ``resume`` send one command
 and print the boat's acknowledgement or its reason for refusing; ``thrust``
 is manual teleoperation (renews the lease until stopped); ``rtcm SOURCE``
-relays RTK corrections; ``web`` serves the live map to a browser.
+relays RTK corrections; ``web`` serves the live map to a browser;
+``foxglove`` serves every vessel to Foxglove.
 ``status``, ``thrust``, ``rtcm`` (and ``web`` while a page is open) publish
 the operator heartbeat while they run (the boat's ``link lost`` failsafe
 watches it); one-shot commands do not, so that a single command does not arm
@@ -385,6 +386,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="progress line every S seconds (stderr)")
     r.set_defaults(shore_func=cmd_rtcm)
 
+    from zarco_tools.shore.foxglove.cli import add_parser as add_foxglove
     from zarco_tools.shore.web.cli import add_parser as add_web
 
     add_web(ss, common)
+    add_foxglove(ss, common)
