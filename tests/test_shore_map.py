@@ -105,13 +105,17 @@ def test_map_is_served_to_all_and_access_answers_operators_only(tmp_path: Path) 
                                     lambda s: heard.append(json.loads(s.payload.to_bytes())))
             deadline = time.monotonic() + 30.0
             maps: list[Any] = []
-            while time.monotonic() < deadline:  # the boat answers once its link is up
+            m: dict[str, Any] = {}
+            # the boat answers once its link is up, and shows the mission once
+            # its autostart's checks have passed
+            while time.monotonic() < deadline:
                 maps = list(view.get("zarco/beta/map", timeout=2.0))
-                if maps:
-                    break
+                if maps and maps[0].ok is not None:
+                    m = json.loads(maps[0].ok.payload.to_bytes())
+                    if m["mission"] is not None:
+                        break
                 time.sleep(0.2)
             assert len(maps) == 1 and maps[0].ok is not None
-            m = json.loads(maps[0].ok.payload.to_bytes())
             # the scenario's network (follow_turn: three beacons, the buoy at the first)
             assert m["listener"] == 0 and len(m["beacons"]) == 3
             lat, lon, _ = pymap3d.ned2geodetic(400.0, 50.0, 0.0, m["origin"]["lat_deg"],

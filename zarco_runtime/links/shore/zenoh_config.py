@@ -22,6 +22,17 @@ may only subscribe to the telemetry; both may query ``map``.  Rules are
 written per flow as seen from the boat: a viewer's subscription comes in
 (ingress ``declare_subscriber``), telemetry goes out (egress ``put``), an
 operator's query comes in and its reply goes out.
+
+Operators are also told what the boat listens to: its subscriptions to
+``operator`` and ``rtcm`` (egress ``declare_subscriber``) and its queryable
+``cmd/**`` (egress ``declare_queryable``).  A zenoh client filters on the
+write side: a declared publisher (``session.declare_publisher``, zenoh's
+usual way to send a periodic value, the advanced publisher of
+``zenoh.ext``) or a querier (``session.declare_querier``) sends only once
+it knows that someone matches its key; without these declarations it sends
+its first sample (before the boat's answer arrives) and drops every later
+one.  ``session.put`` and ``session.get`` do not filter and need nothing.
+Viewers are told nothing of the kind: they may not send anyway.
 """
 
 from __future__ import annotations
@@ -53,6 +64,12 @@ def access_control(cfg: Shore) -> dict[str, Any]:
          "permission": "allow", "key_exprs": [f"{v}/cmd/**"]},
         {"id": "operator_in", "messages": ["put"], "flows": ["ingress"],
          "permission": "allow", "key_exprs": [f"{v}/operator", f"{v}/rtcm"]},
+        # the boat's own declarations, announced to operators so that their
+        # declared publishers and queriers send (write-side filtering)
+        {"id": "listening_out", "messages": ["declare_subscriber"], "flows": ["egress"],
+         "permission": "allow", "key_exprs": [f"{v}/operator", f"{v}/rtcm"]},
+        {"id": "commands_out", "messages": ["declare_queryable"], "flows": ["egress"],
+         "permission": "allow", "key_exprs": [f"{v}/cmd/**", f"{v}/map", f"{v}/access"]},
         # the map on demand (anyone), the role probe (operators)
         {"id": "map_query", "messages": ["query"], "flows": ["ingress"],
          "permission": "allow", "key_exprs": [f"{v}/map"]},
@@ -70,8 +87,8 @@ def access_control(cfg: Shore) -> dict[str, Any]:
         subjects.append({"id": "operators", field: list(cfg.operators)})
         policies.append({"id": "operators", "subjects": ["operators"],
                          "rules": ["telemetry_out", "subscribe", "commands_in", "replies_out",
-                                   "operator_in", "map_query", "map_reply", "access_query",
-                                   "access_reply"]})
+                                   "operator_in", "listening_out", "commands_out", "map_query",
+                                   "map_reply", "access_query", "access_reply"]})
     if cfg.viewers:
         subjects.append({"id": "viewers", field: list(cfg.viewers)})
         policies.append({"id": "viewers", "subjects": ["viewers"],
