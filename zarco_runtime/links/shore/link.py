@@ -6,8 +6,8 @@ event (payloads: :mod:`.telemetry`), ``map`` when it changes and every 10 s
 (:mod:`.map_info`; also the reply to a query on it).  A query on ``access``
 is answered ``{"role": "operator"}``: access control lets only operators
 query it, so a shore tool learns whether its credentials may command before
-offering commands.  In: ``cmd/<name>`` queries, each read
-and bounded (:mod:`.requests`), sent to the supervisor as a
+offering commands.  In: ``cmd/<name>`` queries, each read and bounded
+(:mod:`.requests`), sent to the supervisor as a
 :class:`~zarco_core.messages.Command` from ``shore:<user>`` and answered
 with exactly one reply ``{"ok", "id", "mode", "reason"}``, whatever the
 payload; the operator heartbeat ``operator`` (``{"t", "user"}``) becomes an
@@ -214,20 +214,6 @@ class ShoreLink:
 
     # ------------------------------------------------- zenoh's threads: read, bound, post
 
-    def _on_info_query(self, query: Any) -> None:
-        """A query on ``map`` (the latest map object) or ``access`` (operators only,
-        by access control: the answer says the asker may command); zenoh's thread."""
-        try:
-            key = str(query.key_expr)
-        except Exception as exc:  # let zenoh drop it
-            self._thread_fault(exc)
-            return
-        if key.endswith("/access"):
-            body = json.dumps({"role": "operator"})
-        else:
-            body = self._map_json or json.dumps({"t": None})
-        self.sender.reply(query, key, body)
-
     def _on_query(self, query: Any) -> None:
         """A ``cmd/**`` query (zenoh's thread): posted, or refused here at once.
 
@@ -264,6 +250,22 @@ class ShoreLink:
         self._count("commands_refused_at_once")
         try:
             query.reply(key, _reply_body(False, None, None, why))
+        except Exception as exc:  # the query already gone, the session closing
+            self._count("send_errors_at_once")
+            log.debug("shore: reply failed: %s", exc)
+        finally:
+            with contextlib.suppress(Exception):
+                query.drop()
+
+    def _on_info_query(self, query: Any) -> None:
+        """A query on ``map`` (the latest map object) or ``access`` (operators only,
+        by access control: the answer says the asker may command); zenoh's thread,
+        answered there (nothing to compute)."""
+        try:
+            key = str(query.key_expr)
+            body = json.dumps({"role": "operator"}) if key.endswith("/access") else \
+                self._map_json or json.dumps({"t": None})
+            query.reply(key, body)
         except Exception as exc:  # the query already gone, the session closing
             self._count("send_errors_at_once")
             log.debug("shore: reply failed: %s", exc)
@@ -345,11 +347,14 @@ class ShoreLink:
             return
         cid = r.id or f"shore-{next(_ids)}"
         source = f"shore:{r.user}" if r.user else "shore"
-        task = asyncio.ensure_future(self._send_command(q, r.name, r.args, source, cid))
+        # the raw payload: the supervisor's command schema types it (a refusal
+        # naming the field is acknowledged on the bus, so it is recorded too)
+        task = asyncio.ensure_future(self._send_command(q, r.name, q.payload or b"{}", source,
+                                                        cid))
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
 
-    async def _send_command(self, q: Query, name: str, args: dict[str, Any],
+    async def _send_command(self, q: Query, name: str, args: bytes,
                             source: str, cid: str) -> None:
         try:
             ack = await self.commands.send(name, args, source=source, cmd_id=cid)

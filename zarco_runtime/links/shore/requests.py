@@ -21,8 +21,9 @@ operator heartbeat     at most :data:`MAX_HEARTBEAT_BYTES` bytes of UTF-8
 
 The decoding is msgspec's (C, bounded recursion): a payload nested thousands
 deep is refused as quickly as any other.  What each command's fields must
-be is the supervisor's schema; this module only makes sure that what it
-passes on is a small JSON object.
+be is the command schema's (:mod:`zarco_core.commands`, applied when the
+command is sent to the supervisor); this module only makes sure that what
+it passes on is a small JSON object.
 """
 
 from __future__ import annotations
@@ -33,15 +34,17 @@ from typing import Any
 
 import msgspec
 
+from zarco_core.commands import MAX_DEPTH, MAX_PAYLOAD_BYTES
+
 #: a command payload larger than this is refused unread (bytes)
-MAX_COMMAND_BYTES = 65536
+MAX_COMMAND_BYTES = MAX_PAYLOAD_BYTES
 #: an attachment larger than this is refused unread (bytes)
 MAX_ATTACHMENT_BYTES = 1024
 #: an operator heartbeat larger than this is dropped unread (bytes)
 MAX_HEARTBEAT_BYTES = 1024
 #: objects and arrays nested deeper than this are refused (a mission's
 #: waypoints are 3: the object, the list, a point)
-MAX_NESTING = 6
+MAX_NESTING = MAX_DEPTH
 #: a user name or a command id: at most this many printable characters
 MAX_NAME_CHARS = 64
 NAME_RE = re.compile(r"[a-z0-9_]{1,32}")

@@ -75,6 +75,8 @@ def access_control(cfg: Shore) -> dict[str, Any]:
          "permission": "allow", "key_exprs": [f"{v}/map"]},
         {"id": "map_reply", "messages": ["reply"], "flows": ["egress"],
          "permission": "allow", "key_exprs": [f"{v}/map"]},
+        {"id": "map_out", "messages": ["declare_queryable"], "flows": ["egress"],
+         "permission": "allow", "key_exprs": [f"{v}/map"]},
         {"id": "access_query", "messages": ["query"], "flows": ["ingress"],
          "permission": "allow", "key_exprs": [f"{v}/access"]},
         {"id": "access_reply", "messages": ["reply"], "flows": ["egress"],
@@ -92,7 +94,8 @@ def access_control(cfg: Shore) -> dict[str, Any]:
     if cfg.viewers:
         subjects.append({"id": "viewers", field: list(cfg.viewers)})
         policies.append({"id": "viewers", "subjects": ["viewers"],
-                         "rules": ["telemetry_out", "subscribe", "map_query", "map_reply"]})
+                         "rules": ["telemetry_out", "subscribe", "map_query", "map_reply",
+                                   "map_out"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules,
             "subjects": subjects, "policies": policies}
 
