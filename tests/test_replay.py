@@ -136,8 +136,11 @@ def test_replay_into_a_pty_keeps_order_and_pace(tmp_path: Path) -> None:
     assert arrivals[-1] - arrivals[0] == pytest.approx(28.0 / rate, abs=0.03)
 
 
-def test_replay_refuses_a_missing_port(tmp_path: Path) -> None:
+def test_replay_refuses_a_missing_port(tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
     from zarco_runtime.cli import main
 
     assert main(["replay", str(DATA / "pypilot.log"), "--port", str(tmp_path / "nope"),
-                 "-q"]) == 1
+                 "-q"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--port" in err and str(tmp_path / "nope") in err

@@ -339,6 +339,8 @@ class ReplayResult:
     cut_t: float | None = None
     #: of ``wall_seconds``, the time spent reading the recording (s)
     read_seconds: float = 0.0
+    #: why recording the replay (``--record``) stopped, if it did
+    record_error: str | None = None
 
     @property
     def speed(self) -> float:
@@ -362,6 +364,7 @@ def replay(rec: Recording, overrides: list[str] | None = None,
     start = min(rec.t0, events[0][0]) if events else rec.t0
     t_end = max(inp.t_last, start)
     late = [0]
+    record_errors: list[str] = []
 
     async def main() -> float:
         loop = asyncio.get_running_loop()
@@ -371,6 +374,8 @@ def replay(rec: Recording, overrides: list[str] | None = None,
         for topic, kind in COMPARED.items():
             bus.listen(kind, replayed[topic].append)
         bus.listen(ThrusterCommand, commands.append)
+        bus.listen(Fault, lambda f: record_errors.append(f.reason)
+                   if f.source == "recorder" else None)
         runtime = ReplayRuntime(cfg, bus, clock, ports, boot)
 
         async def at(t: float) -> None:
@@ -423,7 +428,8 @@ def replay(rec: Recording, overrides: list[str] | None = None,
     return ReplayResult(cfg, inp.recorded, replayed, n_chunks, end - start, wall,
                         ports.written.get("thrusters", []), inp.thruster_tx,
                         dict(inp.counts), late[0], lost, inp.restamped, inp.restamp_max_s,
-                        inp.commands, commands, cut_t, read_s)
+                        inp.commands, commands, cut_t, read_s,
+                        record_errors[0] if record_errors else None)
 
 
 class _Done(Exception):
