@@ -13,6 +13,7 @@ $(BIN)/zarco: pyproject.toml
 setup: $(BIN)/zarco
 
 sim: setup
+	mkdir -p out
 	$(BIN)/zarco sim config/scenarios/rectangle.toml --report out/rectangle.json --plot out/rectangle.png
 
 test: setup lint

@@ -247,6 +247,6 @@ def main_replay(args: Any, err: IO[str] | None = None) -> int:
     if prog is not None:
         prog(st.lines, sched.duration_s, force=True)
         prog.close()
-        err.write(f"replay: sent {st.lines} lines, {st.bytes} bytes in {st.wall_s:.1f} s "
+        err.write(f"replay: sent {st.lines} lines, {st.bytes} bytes in {st.wall_s:.2f} s "
                   f"(worst lateness {1000 * st.late_max_s:.1f} ms)\n")
     return 0
