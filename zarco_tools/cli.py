@@ -19,35 +19,6 @@ def _fmt(v: Any, unit: str = "m") -> str:
     return f"{v:.3f} {unit}" if isinstance(v, (int, float)) else str(v)
 
 
-def follow_summary(report: dict[str, Any]) -> str:
-    """One screen of a follow-the-AUV run."""
-    lines = [
-        f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
-        f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "
-        f"= {report['speedup']:.0f}× real time",
-        f"passive fixes: {report['fixes']}, median interval "
-        f"{_fmt(report['fix_interval_s'], 's')}, "
-        f"error RMS {_fmt(report['fix_error_rms_m'])}; track error RMS "
-        f"{_fmt(report['track_error_rms_m'])}",
-        f"AUV course error RMS (straight legs) {_fmt(report['course_error_rms_deg'], '°')}",
-        f"ASV–AUV distance: median {_fmt(report['distance_median_m'])}  "
-        f"p95 {_fmt(report['distance_p95_m'])}  max {_fmt(report['distance_max_m'])}",
-        f"track lost {report['track_lost_events']} times; longest without a usable track "
-        f"{_fmt(report.get('lost_max_s'), 's')}",
-        "",
-        " turn at   angle   detect     recovery   max distance",
-    ]
-
-    def f(v: Any, fmt: str) -> str:
-        return format(v, fmt) if isinstance(v, (int, float)) else "   —  "
-
-    for tr in report["turns"]:
-        lines.append(f" {tr['t_s']:7.1f}  {f(tr.get('angle_deg'), '5.0f')}°  "
-                     f"{f(tr['detect_s'], '6.1f')} s  {f(tr['recovery_s'], '6.1f')} s  "
-                     f"{f(tr['distance_max_m'], '7.2f')} m")
-    return "\n".join(lines)
-
-
 def hold_summary(report: dict[str, Any]) -> str:
     """The station-keeping figures of a run (empty if it never held)."""
     if not report.get("holds"):
@@ -73,6 +44,8 @@ def summary(report: dict[str, Any]) -> str:
                 f"wall = {report['speedup']:.0f}× real time")
         return "\n".join(x for x in (head, hold) if x)
     if "xtrack_rms_m" not in report:
+        from zarco_tools.follow_report import follow_summary
+
         return "\n".join(x for x in (follow_summary(report), hold) if x)
     lines = [
         f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",

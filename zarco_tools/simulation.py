@@ -143,7 +143,13 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     limit = scn.scenario.max_duration_s
     done = asyncio.Event()
 
+    #: (time s, mode) at every change of the guidance's mode: when the follow
+    #: guidance first steered by the AUV's track (acquisition), when it held
+    modes: list[tuple[float, str]] = counters.setdefault("guidance_modes", [])
+
     def on_guidance(g: GuidanceStatus) -> None:
+        if not modes or modes[-1][1] != g.mode:
+            modes.append((g.t, g.mode))
         if g.mode == "lines" and g.complete and not scn.commands:
             done.set()
 

@@ -7,13 +7,21 @@ publishes the :class:`~zarco_core.auv_messages.AuvTrack` it returns.
 
 Modules, in data-flow order:
 
-* :mod:`.messages` – AcousticEvent, BuoyStatus, AuvFix, AuvTrack, TrackFlags;
-* :mod:`.params` – TrackerParams / LblNetworkParams (also the config schema);
+* :mod:`zarco_core.auv_messages` – AcousticEvent, BuoyStatus, AuvFix, AuvTrack,
+  TrackFlags;
+* :mod:`.params` – TrackerParams / the derived Network (also the config schema);
+* :mod:`.timemap` – the acoustic UTC clock mapped onto the runtime clock;
 * :mod:`.cycles` – I/R/I cycle assembly with gates and drop counters;
-* :mod:`.fix` – ranges, emission time, motion-bias correction, circle fix;
+* :mod:`.fix` – ranges, emission time, motion-bias correction, circle and
+  least-squares fixes;
+* :mod:`.assembly` – a cycle's fix: motion-corrected circles, mirror choice,
+  the joint fix with the other beacons, range-only updates;
+* :mod:`.acquire` – mirror vote, (re)initialisation of the filter;
 * :mod:`.kalman` – constant-velocity Kalman filter with innovation gating;
 * :mod:`.imm` – interacting multiple models (straight, manoeuvring, turning);
+* :mod:`.maneuver` – manoeuvre detection (IMM state, cross-course CUSUM) and
+  the turn declaration;
 * :mod:`.rls` – recursive least squares with forgetting on the line model;
-* :mod:`.tracker` – the glue, track aging and lost declaration;
+* :mod:`.tracker` – the glue, track flags, aging and lost declaration;
 * :mod:`.follow` – the follow-law geometry of the paper, section VI.
 """

@@ -212,6 +212,7 @@ class VesselView:
     health: dict[str, Any] = field(default_factory=dict)
     auv: dict[str, Any] = field(default_factory=dict)
     events: list[dict[str, Any]] = field(default_factory=list)
+    map: dict[str, Any] = field(default_factory=dict)
     received: dict[str, float] = field(default_factory=dict)
     endpoint: str = ""
 
