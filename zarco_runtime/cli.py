@@ -149,10 +149,12 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         _quiet_stdout()
         return 0
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
-        # a path no check caught: still one line naming it
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"{name}: {where}{oserror_reason(exc)}", file=sys.stderr)
+    except OSError as exc:
+        if exc.filename is None:
+            raise
+        # a path no check caught (a read-only file system, a full disk, ...): still
+        # one line naming it
+        print(f"{name}: {exc.filename}: {oserror_reason(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130
