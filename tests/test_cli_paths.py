@@ -15,6 +15,7 @@ import json
 import os
 import shutil
 import socket
+import stat
 import subprocess
 import sys
 import time
@@ -23,7 +24,14 @@ from pathlib import Path
 
 import pytest
 
-from zarco_core.paths import PathError, read_text, readable_file, writable_dir, writable_file
+from zarco_core.paths import (
+    PathError,
+    read_text,
+    readable_file,
+    writable_dir,
+    writable_file,
+    write_text,
+)
 from zarco_runtime.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -83,6 +91,25 @@ def test_the_checks_name_the_path_and_the_reason(files: Path) -> None:
     with pytest.raises(PathError, match=r"parent directory .* does not exist"):
         writable_dir(files / "nodir" / "run", "--run-dir", create=True)
     assert not (files / "nodir").exists()  # parents are never made
+
+
+def test_a_result_file_is_written_whole_and_keeps_its_mode(tmp_path: Path) -> None:
+    out = tmp_path / "r.json"
+    write_text(out, "first\n")
+    assert out.read_text() == "first\n"
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~_umask_now()
+    out.chmod(0o640)
+    write_text(out, "second\n")
+    assert out.read_text() == "second\n" and stat.S_IMODE(out.stat().st_mode) == 0o640
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]  # no temporary left
+    with pytest.raises(PathError, match="is a directory"):
+        write_text(tmp_path, "x")
+
+
+def _umask_now() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 # --------------------------------------------------- each command, in-process

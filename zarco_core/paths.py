@@ -196,6 +196,12 @@ def write_text(path: str | os.PathLike[str], text: str, what: str = "") -> Path:
 
 
 def _umask() -> int:
-    mask = os.umask(0)
+    """This process's umask: from /proc (Linux) without changing it; elsewhere
+    by setting and restoring it."""
+    with contextlib.suppress(OSError, ValueError, StopIteration):
+        with open("/proc/self/status", encoding="ascii") as fh:
+            line = next(ln for ln in fh if ln.startswith("Umask:"))
+        return int(line.split()[1], 8)
+    mask = os.umask(0o022)
     os.umask(mask)
     return mask
