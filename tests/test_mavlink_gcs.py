@@ -49,6 +49,11 @@ def free_udp_port() -> int:
         return int(s.getsockname()[1])
 
 
+#: how long a boat may take to start and send its first heartbeat: generous, a
+#: loaded machine starts ``zarco sim --realtime`` (pymavlink and all) slowly
+BOOT_TIMEOUT_S = 120.0
+
+
 def start_boat(url: str, *sets: str, max_s: float = 180.0) -> subprocess.Popen[bytes]:
     """``zarco sim --realtime`` of the rectangle world, no mission of its own, the
     MAVLink endpoint on ``url``."""
@@ -226,7 +231,7 @@ def test_a_ground_station_drives_the_simulated_boat() -> None:
     boat = start_boat(f"udpout:127.0.0.1:{gcs.port}")
     try:
         # --- connect: the boat is a surface boat, generic autopilot, idle, disarmed
-        hb = gcs.heartbeat(lambda m: True, timeout=20.0)
+        hb = gcs.heartbeat(lambda m: True, timeout=BOOT_TIMEOUT_S)
         assert hb.type == mav.MAV_TYPE_SURFACE_BOAT
         assert hb.autopilot == mav.MAV_AUTOPILOT_GENERIC
         assert hb.custom_mode == 4 and not hb.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED
@@ -355,7 +360,7 @@ def test_signing_refuses_unsigned_commands_and_link_loss_fails_safe(tmp_path: Pa
     plain = Gcs(url, 254, 190)
     wrong = Gcs(url, 253, 190, key=os.urandom(32), accept_any=True)
     try:
-        hb = good.heartbeat(lambda m: True, timeout=20.0)
+        hb = good.heartbeat(lambda m: True, timeout=BOOT_TIMEOUT_S)
         assert hb.get_signed()  # the boat signs what it sends
         for g in (plain, wrong):
             g.heartbeat(lambda m: True, timeout=5.0)
