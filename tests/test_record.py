@@ -68,7 +68,7 @@ def test_every_message_and_raw_chunk_is_recorded_with_a_schema(follow: Any) -> N
     # every bus message: what the bus published, the recording holds (plus its own
     # raw and derived topics)
     bus_topics = {t: n for t, n in topics.items()
-                  if not t.startswith(("/raw/", "/foxglove/"))}
+                  if not t.startswith(("/raw/", "/foxglove/", "/shore/"))}
     after = [e for e in res.extra["events"] if e.text.startswith("recording closed")]
     assert len(after) == 1  # told once the file is finished: the only one not in it
     assert sum(bus_topics.values()) == runtime.bus.published - 1

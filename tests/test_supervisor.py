@@ -60,12 +60,12 @@ def test_boots_idle_and_refuses_with_reasons() -> None:
     assert reasons[0] == "not in manual mode"
     assert reasons[1] == "no mission loaded"
     assert reasons[2].startswith("buoy feed disabled")
-    assert reasons[3].startswith("unknown mode 'sideways'")
-    assert reasons[4] == "waypoint 0: not a latitude, longitude: [91.0, 0.0]"
-    assert reasons[5].startswith("waypoint 1 is") and "km from the origin" in reasons[5]
-    assert reasons[6].startswith("speed_mps must be within")
-    assert reasons[7].startswith("bad arguments")
-    assert reasons[8] == "unknown command 'warp'"
+    assert reasons[3].startswith("mode: unknown mode 'sideways' (one of idle, manual")
+    assert reasons[4] == "waypoints[0][0]: must be ≤ 90"
+    assert reasons[5].startswith("waypoints[1]: ") and "km from the origin" in reasons[5]
+    assert reasons[6] == "speed_mps: must be ≤ 3"
+    assert reasons[7] == "lat_deg: must be a number, got text"
+    assert reasons[8].startswith("unknown command 'warp' (one of stop, arm,")
     # never moved: idle from boot, zero thrust all along
     assert [d.mode.value for d in res.extra["directives"]] == ["idle"] * 2
     assert max(abs(u) for u in res.log.u1 + res.log.u2) == 0.0
@@ -128,7 +128,7 @@ def test_waypoints_outside_the_geofence_are_refused() -> None:
     res = _sim([(5.0, "mission", {"waypoints": [_geo(0.0, 0.0), _geo(80.0, 0.0)]})], 8.0,
                "runtime.geofence.radius_m=50.0")
     a = _acks(res)[0]
-    assert not a.ok and a.reason.startswith("waypoint 1 is outside the geofence")
+    assert not a.ok and a.reason.startswith("waypoints[1]: outside the geofence")
 
 
 def test_manual_needs_its_lease_renewed() -> None:
@@ -152,7 +152,7 @@ def test_mission_with_leg_speeds_and_a_start_leg_then_cleared() -> None:
                 (7.0, "mode", {"mode": "lines"})], 9.0)
     a = _acks(res)
     assert [x.ok for x in a] == [True, False, True, True, False]
-    assert a[1].reason == "leg_speeds_mps: need one speed per leg (2)"
+    assert a[1].reason == "leg_speeds_mps: need one speed per leg (2), got 1"
     assert a[4].reason == "no mission loaded"
     d = next(x for x in res.extra["directives"] if x.mode.value == "lines")
     assert d.start_leg == 1

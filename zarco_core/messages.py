@@ -16,6 +16,11 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 
+from zarco_core.commands import CommandArgs
+from zarco_core.modes import MOVING, UNDER_WAY, Mode
+
+__all__ = ["MOVING", "UNDER_WAY", "Mode"]  # re-exported: the modes live in zarco_core.modes
+
 
 class FixQuality(enum.IntEnum):
     """GNSS fix quality, ordered from worst to best."""
@@ -279,44 +284,22 @@ class Fault:
 # ------------------------------------------------------------ supervision
 
 
-class Mode(enum.StrEnum):
-    """The vessel's modes; one supervisor owns the current one.
-
-    ``idle`` zero thrust; ``manual`` the operator's U1, U2 for a lease;
-    ``lines`` line tracking along a mission; ``follow`` following the AUV;
-    ``hold`` station keeping at a point; ``return`` go home, then hold.
-    """
-
-    IDLE = "idle"
-    MANUAL = "manual"
-    LINES = "lines"
-    FOLLOW = "follow"
-    HOLD = "hold"
-    RETURN = "return"
-
-
-#: modes in which the vessel moves on its own (navigation failsafes apply)
-UNDER_WAY = frozenset({Mode.LINES, Mode.FOLLOW, Mode.HOLD, Mode.RETURN})
-
-
 @dataclass(slots=True)
 class Command:
     """An operator's (or a script's) command to the supervisor.
 
     ``id`` is chosen by the sender and echoed in the acknowledgement;
     ``source`` says who sent it (``local``, ``scenario``, ``shore:<user>``,
-    ``mavlink:<system id>``).  ``name`` and ``args`` follow the shore protocol:
-    ``stop {}``, ``mode {"mode": "hold", "lat_deg"?, "lon_deg"?}``,
-    ``mission {"waypoints": [[lat_deg, lon_deg], ...], "speed_mps", "start"}``,
-    ``follow {}``, ``thrust {"u1", "u2"}`` (manual mode; renews the lease),
-    ``resume {}``, ``arm {}``, ``disarm {}``.
+    ``mavlink:<system id>``).  ``name`` is the command and ``args`` its typed,
+    bounded arguments (:mod:`zarco_core.commands`: ``decode(name, payload)``
+    builds them from what a link received, or refuses it).
     """
 
     t: float
     id: str
     source: str
     name: str
-    args: dict[str, object] = field(default_factory=dict)
+    args: CommandArgs
 
 
 @dataclass(slots=True)

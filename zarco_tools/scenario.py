@@ -45,7 +45,8 @@ class ScriptedCommand:
 
     at_s: float = spec(0.0, "s", "when, seconds after the start", min=0.0, max=1e6)
     name: str = spec("stop", "", "command", choices=["stop", "mode", "mission", "follow",
-                                                     "thrust", "resume", "arm", "disarm"])
+                                                     "thrust", "resume", "arm", "disarm",
+                                                     "param"])
     args: dict[str, Any] = spec(dict, "", "the command's arguments")
 
 

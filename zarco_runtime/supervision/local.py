@@ -26,19 +26,34 @@ import itertools
 import json
 import logging
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock
+from zarco_core.commands import CommandArgs, CommandRefused, decode
 from zarco_core.messages import Command, CommandAck, VesselStatus
+from zarco_runtime.guidance.directive import Directive
 
 log = logging.getLogger("zarco.local")
 _ids = itertools.count(1)
 
 
+#: what a link hands over as a command's arguments: raw JSON, a parsed mapping,
+#: typed arguments, or nothing (``{}``)
+Payload = CommandArgs | Mapping[str, Any] | bytes | str | None
+
+
 class LocalCommands:
-    """Send commands over the bus and await their acknowledgement."""
+    """Send commands over the bus and await their acknowledgement.
+
+    The payload is decoded here (:func:`zarco_core.commands.decode`): a payload
+    that is not a valid command is refused at once with the field and the
+    reason (a :class:`CommandAck` on the bus like the supervisor's, so it is
+    counted, recorded and told to the operator), and only typed commands reach
+    the supervisor.
+    """
 
     def __init__(self, bus: Bus, clock: Clock, source: str = "local",
                  listen: Listen | None = None) -> None:
@@ -47,22 +62,34 @@ class LocalCommands:
         self.source = source
         self._pending: dict[str, asyncio.Future[CommandAck]] = {}
         (listen or bus.listen)(CommandAck, self._on_ack)
+        self.directive = bus.latest(Directive)
 
     def _on_ack(self, ack: CommandAck) -> None:
         f = self._pending.pop(ack.id, None)
         if f is not None and not f.done():
             f.set_result(ack)
 
-    async def send(self, name: str, args: dict[str, Any] | None = None,
-                   timeout_s: float = 2.0, source: str | None = None,
-                   cmd_id: str | None = None) -> CommandAck:
-        """Send ``name`` with ``args``; the supervisor's acknowledgement, or a
-        refusal of our own if none came within ``timeout_s``."""
+    def _mode(self) -> str:
+        d = self.directive.value
+        return d.mode.value if d is not None else "idle"
+
+    async def send(self, name: str, args: Payload = None, timeout_s: float = 2.0,
+                   source: str | None = None, cmd_id: str | None = None) -> CommandAck:
+        """Send ``name`` with ``args`` (see :data:`Payload`); the supervisor's
+        acknowledgement, a refusal of the payload (field and reason), or a
+        refusal of our own if no acknowledgement came within ``timeout_s``."""
         src = source or self.source
         cid = cmd_id or f"{src}-{os.getpid()}-{next(_ids)}"
+        try:
+            typed = decode(name, args)
+        except CommandRefused as exc:
+            shown = name[:64] if isinstance(name, str) else "?"
+            ack = CommandAck(self.clock.now(), cid, src, shown, False, self._mode(), str(exc))
+            self.bus.publish(ack)
+            return ack
         fut: asyncio.Future[CommandAck] = asyncio.get_running_loop().create_future()
         self._pending[cid] = fut
-        self.bus.publish(Command(self.clock.now(), cid, src, name, dict(args or {})))
+        self.bus.publish(Command(self.clock.now(), cid, src, name, typed))
         try:
             return await asyncio.wait_for(fut, timeout_s)
         except TimeoutError:

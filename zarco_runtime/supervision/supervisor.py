@@ -31,6 +31,16 @@ from typing import TYPE_CHECKING, Any
 from zarco_core.auv_messages import AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
+from zarco_core.commands import (
+    ArmArgs,
+    DisarmArgs,
+    FollowArgs,
+    MissionArgs,
+    ModeArgs,
+    ResumeArgs,
+    StopArgs,
+    ThrustArgs,
+)
 from zarco_core.component import ComponentContext
 from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import (
@@ -348,22 +358,18 @@ class Supervisor:
                    + ("accepted" if ok else f"refused: {reason}"))
 
     def _handle(self, cmd: Command) -> str:
-        a = cmd.args or {}
-        name = cmd.name
+        a = cmd.args
         src = cmd.source
-        if name in ("stop", "disarm"):
+        if isinstance(a, (StopArgs, DisarmArgs)):
             self.pending_start = False
-            self._set_mode(Mode.IDLE, f"{name} from {src}")
+            self._set_mode(Mode.IDLE, f"{cmd.name} from {src}")
             return ""
-        if name == "arm":
+        if isinstance(a, ArmArgs):
             self.armed = True
             self.event("mode", f"armed by {src}")
             return ""
-        if name == "mode":
-            try:
-                mode = Mode(str(a.get("mode", "")))
-            except ValueError:
-                return f"unknown mode {a.get('mode')!r} (one of {', '.join(m.value for m in Mode)})"
+        if isinstance(a, ModeArgs):
+            mode = a.mode
             if mode is Mode.IDLE:
                 self.pending_start = False
                 self._set_mode(Mode.IDLE, f"mode idle from {src}")
@@ -386,33 +392,26 @@ class Supervisor:
             else:
                 self._set_mode(Mode.MANUAL, f"manual from {src}")
             return ""
-        if name == "mission":
+        if isinstance(a, MissionArgs):
             return self._mission(a, src)
-        if name == "follow":
+        if isinstance(a, FollowArgs):
             return self._follow(src)
-        if name == "thrust":
+        if isinstance(a, ThrustArgs):
             if self.mode is not Mode.MANUAL:
                 return "not in manual mode"
-            u1, u2 = float(a["u1"]), float(a["u2"])  # type: ignore[arg-type]
-            for k, u in (("u1", u1), ("u2", u2)):
-                if not (math.isfinite(u) and -100.0 <= u <= 100.0):
-                    return f"{k} must be a number within -100..100, got {a[k]!r}"
             t = self.now()
-            self.bus.publish(ManualThrust(t, u1, u2, t + self.cfg.supervisor.manual_lease_s))
+            self.bus.publish(ManualThrust(t, a.u1, a.u2, t + self.cfg.supervisor.manual_lease_s))
             return ""
-        if name == "resume":
+        if isinstance(a, ResumeArgs):
             return self._resume(src)
-        return f"unknown command {name!r}"
+        return f"{cmd.name}: not handled by this supervisor"
 
-    def _hold(self, a: dict[str, object], src: str) -> str:
+    def _hold(self, a: ModeArgs, src: str) -> str:
         why = self._cannot(Mode.HOLD)
         if why:
             return why
-        if "lat_deg" in a or "lon_deg" in a:
-            lat, lon = float(a["lat_deg"]), float(a["lon_deg"])  # type: ignore[arg-type]
-            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-                return f"not a latitude, longitude: {lat}, {lon}"
-            point = self.frame.to_ned(lat, lon)
+        if a.lat_deg is not None and a.lon_deg is not None:
+            point = self.frame.to_ned(a.lat_deg, a.lon_deg)
             out = self.fence.outside(*point) if self.fence.enabled else ""
             if out:
                 return f"hold point outside the geofence ({out})"
@@ -434,8 +433,8 @@ class Supervisor:
         self._set_mode(Mode.FOLLOW, f"follow from {src}", mission=m)
         return ""
 
-    def _mission(self, a: dict[str, object], src: str) -> str:
-        if a.get("clear"):
+    def _mission(self, a: MissionArgs, src: str) -> str:
+        if a.clear:
             if self.mode is Mode.LINES:
                 return "a mission is running: stop or hold first"
             self.loaded = None
@@ -444,53 +443,35 @@ class Supervisor:
                 self._save_state()
             self.event("mission", f"loaded mission cleared by {src}")
             return ""
-        wps_raw = a.get("waypoints")
-        if not isinstance(wps_raw, list) or len(wps_raw) < 2:
-            return "waypoints: need a list of at least 2 [lat_deg, lon_deg]"
-        wps: list[tuple[float, float]] = []
-        for i, w in enumerate(wps_raw):
-            if not (isinstance(w, (list, tuple)) and len(w) == 2):
-                return f"waypoint {i}: must be [lat_deg, lon_deg]"
-            lat, lon = float(w[0]), float(w[1])
-            if not (math.isfinite(lat) and math.isfinite(lon) and -90.0 <= lat <= 90.0
-                    and -180.0 <= lon <= 180.0):
-                return f"waypoint {i}: not a latitude, longitude: {w}"
-            wps.append((lat, lon))
-        speed = float(a.get("speed_mps", 1.0))  # type: ignore[arg-type]
+        wps = [(lat, lon) for lat, lon in a.waypoints]
         vmax = self.cfg.supervisor.max_speed_mps
-        if not (math.isfinite(speed) and 0.05 <= speed <= vmax):
-            return f"speed_mps must be within 0.05..{vmax:g} m/s, got {a.get('speed_mps')!r}"
-        speeds_raw = a.get("leg_speeds_mps")
-        speeds: list[float] = []
-        if speeds_raw is not None:
-            if not isinstance(speeds_raw, list) or len(speeds_raw) != len(wps) - 1:
-                return f"leg_speeds_mps: need one speed per leg ({len(wps) - 1})"
-            for i, v in enumerate(speeds_raw):
-                sv = float(v)
-                if not (math.isfinite(sv) and 0.05 <= sv <= vmax):
-                    return f"leg_speeds_mps: leg {i} must be within 0.05..{vmax:g} m/s, got {v!r}"
-                speeds.append(sv)
-        start_leg = int(a.get("start_leg", 0))  # type: ignore[call-overload]
-        if not 0 <= start_leg < len(wps) - 1:
-            return f"start_leg must be within 0..{len(wps) - 2}, got {start_leg}"
+        if a.speed_mps > vmax:
+            return f"speed_mps: must be ≤ {vmax:g} m/s (supervisor.max_speed_mps), got " \
+                f"{a.speed_mps:g}"
+        speeds = list(a.leg_speeds_mps or ())
+        for i, v in enumerate(speeds):
+            if v > vmax:
+                return f"leg_speeds_mps[{i}]: must be ≤ {vmax:g} m/s " \
+                    f"(supervisor.max_speed_mps), got {v:g}"
+        start_leg = a.start_leg
         pts = [self.frame.to_ned(lat, lon) for lat, lon in wps]
         for i, p in enumerate(pts):
             if math.hypot(*p) > 50_000.0:
-                return f"waypoint {i} is {math.hypot(*p) / 1000:.0f} km from the origin"
+                return f"waypoints[{i}]: {math.hypot(*p) / 1000:.0f} km from the origin " \
+                    "(at most 50 km)"
             if i and math.hypot(p[0] - pts[i - 1][0], p[1] - pts[i - 1][1]) < 1.0:
-                return f"waypoints {i - 1} and {i} are less than 1 m apart"
+                return f"waypoints[{i}]: less than 1 m from waypoint {i - 1}"
             if self.fence.enabled:
                 out = self.fence.outside(*p)
                 if out:
-                    return f"waypoint {i} is outside the geofence ({out})"
-        name = str(a.get("name", f"{len(wps)} waypoints from {src}"))
-        legs = legs_from_points(pts, speed)
+                    return f"waypoints[{i}]: outside the geofence ({out})"
+        name = a.name or f"{len(wps)} waypoints from {src}"
+        legs = legs_from_points(pts, a.speed_mps)
         if speeds:
             legs = tuple(Leg(lg.index, lg.n0, lg.e0, lg.n1, lg.e1, v)
                          for lg, v in zip(legs, speeds, strict=True))
         m = Mission("lines", legs, name, tuple(wps))
-        start = bool(a.get("start", True))
-        if start:
+        if a.start:
             why = self._start(m, start_leg, src)
             if why:
                 return why

@@ -53,6 +53,7 @@ from typing import Any
 from zarco_core.auv_messages import AuvFix, AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, VirtualTimeEventLoop
+from zarco_core.commands import CommandRefused, decode
 from zarco_core.component import ComponentContext, Runnable
 from zarco_core.config import apply_overrides, build
 from zarco_core.messages import (
@@ -227,6 +228,17 @@ def replay_config(rec: Recording, overrides: list[str], record: str | None) -> R
     return build(RuntimeConfig, data, f"{rec.paths[0]} (recorded configuration)")
 
 
+def command_from_json(d: dict[str, Any]) -> Command | None:
+    """A recorded command with its typed arguments (None if they no longer decode:
+    a recording of an older runtime)."""
+    try:
+        name = str(d["name"])
+        args = decode(name, d.get("args") or {})
+        return Command(float(d["t"]), str(d["id"]), str(d["source"]), name, args)
+    except (CommandRefused, KeyError, TypeError, ValueError):
+        return None
+
+
 def _prune(d: Any) -> Any:
     """Drop nulls (a default stands for them: NaN/inf cannot be written as JSON)."""
     if isinstance(d, dict):
@@ -301,6 +313,11 @@ def load_inputs(rec: Recording) -> Inputs:
                     out.restamp_max_s = max(out.restamp_max_s, t - t0)
         elif topic in COMPARED:
             out.recorded[topic].append(rebuild(COMPARED[topic], d))
+        elif topic == "/Command":
+            cmd = command_from_json(d)
+            if cmd is not None:
+                events.append((t, "", cmd))
+                out.counts[topic] += 1
         elif topic != "/Fault" or d.get("source") == "control":
             msg: Any = rebuild(PLAYED[topic], d)
             events.append((t, "", msg))

@@ -15,17 +15,29 @@ while the GCS sends and ends when it stops."""
 
 from __future__ import annotations
 
+import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from zarco_core.messages import Mode
 from zarco_runtime.links.mavlink.core import Core
 from zarco_runtime.links.mavlink.link import Link
-from zarco_runtime.links.mavlink.protocol import CUSTOM_MODE, MODE_OF_CUSTOM, mav, mix_manual
+from zarco_runtime.links.mavlink.protocol import (
+    CUSTOM_MODE,
+    MODE_OF_CUSTOM,
+    mav,
+    mix_manual,
+    whole,
+)
 from zarco_runtime.links.mavlink.streams import Streams
 from zarco_runtime.links.mavlink.transfer import MissionTransfer
 
+log = logging.getLogger("zarco.mavlink")
+
+#: the largest MAVLink 2 message id (24 bits)
+MSG_ID_MAX = 0xFFFFFF
 #: MANUAL_CONTROL → thrust: pass on a change at most this often, a steady command this often (s)
 MANUAL_MIN_S = 0.04
 MANUAL_KEEP_S = 0.2
@@ -51,20 +63,40 @@ class Commands:
         self.manual = Manual()
 
     def on_command(self, link: Link, m: Any, is_int: bool) -> None:
+        """A COMMAND_LONG or COMMAND_INT: exactly one COMMAND_ACK, now or when the
+        supervisor has answered, whatever its parameters (NaN, infinite, out of
+        range: DENIED; a failure of ours: FAILED)."""
         c = self.core
         if not c.for_us(m):
             return
         src, comp = m.get_srcSystem(), m.get_srcComponent()
         cmd = int(m.command)
-        p1, p2 = float(m.param1), float(m.param2)
         c.counters.commands += 1
+        answered = False
 
         def ack(result: int) -> None:
-            c.command_ack(link, src, comp, cmd, result)
+            nonlocal answered
+            if not answered:
+                answered = True
+                c.command_ack(link, src, comp, cmd, result)
 
         def supervise(name: str, args: dict[str, Any]) -> None:
+            nonlocal answered
+            answered = True  # by the task, once the supervisor has answered
             c.spawn(self._supervised(link, src, comp, cmd, name, args))
 
+        try:
+            self._command(link, m, is_int, src, cmd, ack, supervise)
+        except Exception:  # a bug of ours on an odd command: it still gets its answer
+            c.counters.handler_errors += 1
+            log.exception("mavlink: command %d from %d", cmd, src)
+            ack(mav.MAV_RESULT_FAILED)
+
+    def _command(self, link: Link, m: Any, is_int: bool, src: int, cmd: int,
+                 ack: Callable[[int], None],
+                 supervise: Callable[[str, dict[str, Any]], None]) -> None:
+        c = self.core
+        p1, p2 = float(m.param1), float(m.param2)
         if cmd == mav.MAV_CMD_COMPONENT_ARM_DISARM:
             if p1 == 1.0:
                 supervise("arm", {})
@@ -73,7 +105,11 @@ class Commands:
             else:
                 ack(mav.MAV_RESULT_DENIED)
         elif cmd == mav.MAV_CMD_DO_SET_MODE:
-            self._set_mode(link, src, comp, cmd, int(p1), p2)
+            base = whole(p1, 0, 255)
+            if base is None:
+                ack(mav.MAV_RESULT_DENIED)
+            else:
+                self._set_mode(link, src, m.get_srcComponent(), cmd, base, p2)
         elif cmd == mav.MAV_CMD_MISSION_START:
             if self.transfer.cleared:
                 c.event("mission", f"MISSION_START from mavlink:{src} refused: the "
@@ -93,14 +129,20 @@ class Commands:
                 args.update(lat_deg=lat, lon_deg=lon)
             supervise("mode", args)
         elif cmd == mav.MAV_CMD_REQUEST_MESSAGE:
-            ack(self.streams.request_message(link, int(p1), p2))
+            msg_id = whole(p1, 0, MSG_ID_MAX)
+            ack(mav.MAV_RESULT_DENIED if msg_id is None
+                else self.streams.request_message(link, msg_id, p2))
         elif cmd == mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            ack(mav.MAV_RESULT_ACCEPTED)
             link.send(self.streams.autopilot_version())
+            ack(mav.MAV_RESULT_ACCEPTED)
         elif cmd == mav.MAV_CMD_SET_MESSAGE_INTERVAL:
-            ack(self.streams.set_interval(link, int(p1), p2))
+            msg_id = whole(p1, 0, MSG_ID_MAX)
+            ack(mav.MAV_RESULT_DENIED if msg_id is None or not math.isfinite(p2)
+                else self.streams.set_interval(link, msg_id, p2))
         elif cmd == mav.MAV_CMD_GET_MESSAGE_INTERVAL:
-            ack(self.streams.request_message(link, mav.MAVLINK_MSG_ID_MESSAGE_INTERVAL, p1))
+            ack(mav.MAV_RESULT_DENIED if whole(p1, 0, MSG_ID_MAX) is None
+                else self.streams.request_message(link, mav.MAVLINK_MSG_ID_MESSAGE_INTERVAL,
+                                                  p1))
         else:
             ack(mav.MAV_RESULT_UNSUPPORTED)
 
@@ -115,7 +157,8 @@ class Commands:
     def _set_mode(self, link: Link, src: int, comp: int, cmd: int, base: int,
                   custom: float) -> None:
         c = self.core
-        mode = MODE_OF_CUSTOM.get(int(custom)) if custom == int(custom) else None
+        number = whole(custom, 0, 0xFFFFFFFF)
+        mode = MODE_OF_CUSTOM.get(number) if number is not None else None
         if not base & mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED or mode is None:
             table = ", ".join(f"{v} {k.value}" for k, v in CUSTOM_MODE.items())
             c.event("mode", f"mode change from mavlink:{src} refused: custom mode "
@@ -132,7 +175,13 @@ class Commands:
     async def _supervised(self, link: Link, src: int, comp: int, cmd: int, name: str,
                           args: dict[str, Any]) -> None:
         c = self.core
-        ack = await c.cmds.send(name, args, source=f"mavlink:{src}")
+        try:
+            ack = await c.cmds.send(name, args, source=f"mavlink:{src}")
+        except Exception:  # ours, not the ground station's: answered, never a restart
+            c.counters.handler_errors += 1
+            log.exception("mavlink: %s from %d", name, src)
+            c.command_ack(link, src, comp, cmd, mav.MAV_RESULT_FAILED)
+            return
         if ack.ok:
             c.counters.commands_accepted += 1
             result = mav.MAV_RESULT_ACCEPTED
@@ -160,5 +209,9 @@ class Commands:
         c.spawn(self._thrust(m.get_srcSystem(), u1, u2))
 
     async def _thrust(self, src: int, u1: float, u2: float) -> None:
-        await self.core.cmds.send("thrust", {"u1": round(u1, 3), "u2": round(u2, 3)},
-                                  source=f"mavlink:{src}")
+        try:
+            await self.core.cmds.send("thrust", {"u1": round(u1, 3), "u2": round(u2, 3)},
+                                      source=f"mavlink:{src}")
+        except Exception:  # a joystick has no answer; ours is counted, never a restart
+            self.core.counters.handler_errors += 1
+            log.exception("mavlink: thrust from %d", src)

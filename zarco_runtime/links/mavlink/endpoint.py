@@ -5,7 +5,8 @@ thread, :mod:`.link`).  This module wires the parts and dispatches what
 arrives: the telemetry (:mod:`.builders`) on per-connection schedules
 (:mod:`.streams`), the mission protocol (:mod:`.transfer`), commands
 (:mod:`.commands`), parameters (:mod:`.param_protocol`), corrections
-(:mod:`.rtcm`), and the runtime's events as STATUSTEXT.  The boat is a MAV_TYPE_SURFACE_BOAT with
+(:mod:`.rtcm`), the runtime's events as STATUSTEXT, and the tracked AUV as a
+second system (:mod:`.auv`).  The boat is a MAV_TYPE_SURFACE_BOAT with
 MAV_AUTOPILOT_GENERIC, system ``system_id``, component ``component_id``.
 
 Out, on every connection:
@@ -65,6 +66,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from zarco_core.auv_messages import AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
@@ -80,6 +82,7 @@ from zarco_core.messages import (
     VesselStatus,
 )
 from zarco_runtime.guidance.directive import Directive
+from zarco_runtime.links.mavlink.auv import AuvSystem
 from zarco_runtime.links.mavlink.builders import Telemetry
 from zarco_runtime.links.mavlink.commands import Commands
 from zarco_runtime.links.mavlink.core import TEXT_REPEAT_S, Core, Counters
@@ -109,9 +112,10 @@ class MavlinkEndpoint:
         self.core = core = Core(cfg, bus, clock, ctx)
         self.telemetry = Telemetry(core)
         self.transfer = MissionTransfer(core)
+        self.auv = AuvSystem(core)
         self.streams = Streams(core, {**self.telemetry.builders(),
                                       "MISSION_CURRENT": lambda now: self.transfer.current()},
-                               self.telemetry.autopilot_version)
+                               self.telemetry.autopilot_version, self.auv.after_boat_heartbeat)
         self.commands = Commands(core, self.streams, self.transfer)
         self.params = ParamProtocol(core)
         self.rtcm = RtcmReassembler()
@@ -127,6 +131,7 @@ class MavlinkEndpoint:
         ctx.listen(VesselStatus, self._on_status)
         ctx.listen(CommandAck, self._on_ack)
         ctx.listen(NavState, self._on_nav)
+        ctx.listen(AuvTrack, self.auv.on_track)
         t, cm, p = self.transfer, self.commands, self.params
         self._handlers: dict[str, Callable[[Link, Any], None]] = {
             "HEARTBEAT": self._on_heartbeat,
@@ -212,12 +217,15 @@ class MavlinkEndpoint:
     def _handle(self, link: Link, m: Any) -> None:
         core = self.core
         name = m.get_type()
-        if m.get_srcSystem() == core.s.system_id and \
-                m.get_srcComponent() == core.s.component_id:
+        sender = (m.get_srcSystem(), m.get_srcComponent())
+        if sender in ((core.s.system_id, core.s.component_id), self.auv.source):
             return  # our own, echoed (broadcast)
         h = self._handlers.get(name)
         if h is None:
             core.counters.ignored += 1
+            return
+        if self.auv.addressed(m):
+            self.auv.on_message(link, m, name)
             return
         if core.key is not None and not getattr(m, "_signed", False):
             self._refuse_unsigned(link, m, name)

@@ -35,6 +35,7 @@ and ArduPilot send it); they are mixed as ``U1 = (x + r) / 10``, ``U2 = (x − r
 
 from __future__ import annotations
 
+import math
 import os
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -45,7 +46,7 @@ from pymavlink.dialects.v20 import common as mav
 from zarco_core.messages import Mode
 
 __all__ = ["CUSTOM_MODE", "MODE_OF_CUSTOM", "base_mode", "event_severity", "mav", "mix_manual",
-           "text_chunks", "thrust_to_pwm"]
+           "text_chunks", "thrust_to_pwm", "whole"]
 
 #: custom_mode number of each supervisor mode (see the module docstring)
 CUSTOM_MODE: dict[Mode, int] = {
@@ -63,6 +64,14 @@ PWM_NEUTRAL_US = 1500
 PWM_PER_PERCENT = 4.0
 INT16_MAX = 32767
 UINT16_MAX = 65535
+
+
+def whole(x: float, lo: int, hi: int) -> int | None:
+    """``x`` (a command's float parameter) as an integer within ``lo..hi``; None
+    when it is not a whole number there (NaN, infinite, fractional, out of range)."""
+    if not math.isfinite(x) or x != math.floor(x) or not lo <= x <= hi:
+        return None
+    return int(x)
 
 
 def thrust_to_pwm(u: float) -> int:

@@ -6,7 +6,8 @@ changes them with SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM (ArduPilot's
 groups) or asks for one message with REQUEST_MESSAGE.  Telemetry goes on a
 connection's telemetry queue (the oldest dropped when a link cannot keep up),
 except the HEARTBEAT and MISSION_CURRENT, which keep their order with the
-replies."""
+replies.  Another system's heartbeat (the AUV's) follows the boat's on each
+link, so that a ground station hears the boat first and makes it its vehicle."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from typing import Any
 from zarco_runtime.links.mavlink.builders import Builder
 from zarco_runtime.links.mavlink.core import Core
 from zarco_runtime.links.mavlink.link import Link
-from zarco_runtime.links.mavlink.protocol import mav
+from zarco_runtime.links.mavlink.protocol import mav, whole
 from zarco_runtime.links.mavlink.settings import MAX_RATE_HZ, STREAMS
 
 log = logging.getLogger("zarco.mavlink")
@@ -49,13 +50,16 @@ class Streams:
     """The per-connection schedules and the requests that change them."""
 
     def __init__(self, core: Core, builders: dict[str, Builder],
-                 autopilot_version: Callable[[], Any]) -> None:
+                 autopilot_version: Callable[[], Any],
+                 after_heartbeat: Callable[[Link], None] | None = None) -> None:
         missing = set(STREAMS) - set(builders)
         if missing:
             raise ValueError(f"no builder for {', '.join(sorted(missing))}")
         self.core = core
         self.builders = builders
         self.autopilot_version = autopilot_version
+        #: called with the link after each of the boat's heartbeats on it
+        self.after_heartbeat = after_heartbeat
 
     def add(self, link: Link, now: float) -> None:
         """Give ``link`` the default schedule, starting at ``now``."""
@@ -100,6 +104,8 @@ class Streams:
         # in order with the replies: the heartbeat, and MISSION_CURRENT (also sent
         # as a reply at every change, so a queued older one must not follow it)
         link.send(msg, reply=name in ("HEARTBEAT", "MISSION_CURRENT"))
+        if name == "HEARTBEAT" and self.after_heartbeat is not None:
+            self.after_heartbeat(link)
 
     # ------------------------------------------------------------ requests
 
@@ -140,12 +146,13 @@ class Streams:
         if msg_id == mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
             link.send(self.autopilot_version())
         elif msg_id == mav.MAVLINK_MSG_ID_MESSAGE_INTERVAL:
-            name = MSG_NAME.get(int(p2))
-            if name is None:
+            asked = whole(p2, 0, 0xFFFF)
+            name = MSG_NAME.get(asked) if asked is not None else None
+            if asked is None or name is None:
                 return int(mav.MAV_RESULT_DENIED)
             st = link.streams[name]
             us = int(st.interval_s * 1e6) if st.interval_s > 0 else -1
-            link.send(mav.MAVLink_message_interval_message(int(p2), us))
+            link.send(mav.MAVLink_message_interval_message(asked, us))
         elif msg_id in MSG_NAME:
             msg = self.build(MSG_NAME[msg_id], now)
             if msg is None:

@@ -12,6 +12,7 @@ directives and the guidance's status."""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +22,8 @@ from zarco_runtime.links.mavlink.core import Core
 from zarco_runtime.links.mavlink.link import Link
 from zarco_runtime.links.mavlink.mission import MAX_ITEMS, Item, items_from_mission, parse_items
 from zarco_runtime.links.mavlink.protocol import mav
+
+log = logging.getLogger("zarco.mavlink")
 
 #: mission upload: re-request an item after this long, this many times (s, count)
 UPLOAD_RETRY_S = 1.0
@@ -131,6 +134,17 @@ class MissionTransfer:
         self.core.spawn(self._finish_upload(up))
 
     async def _finish_upload(self, up: Upload) -> None:
+        try:
+            await self._take_upload(up)
+        except Exception:  # ours, not the ground station's: answered, never a restart
+            self.core.counters.handler_errors += 1
+            log.exception("mavlink: mission upload from %d", up.sysid)
+            self.core.mission_ack(up.link, up.sysid, up.compid, mav.MAV_MISSION_ERROR)
+        finally:
+            if self.upload is up:
+                self.upload = None
+
+    async def _take_upload(self, up: Upload) -> None:
         c = self.core
         items = [it for it in up.items if it is not None]
         parsed = parse_items(items, c.s.mission_speed_mps)
@@ -159,8 +173,6 @@ class MissionTransfer:
                 c.mission_ack(up.link, up.sysid, up.compid,
                               mav.MAV_MISSION_ERROR if ack.mode == "unknown"
                               else mav.MAV_MISSION_INVALID)
-        if self.upload is up:
-            self.upload = None
 
     def _clear(self) -> None:
         # the supervisor keeps the mission it had loaded (it has no command to drop
