@@ -155,6 +155,8 @@ def test_manoeuvres_merge_a_lawnmower_end_and_keep_an_arc_whole() -> None:
     assert [(m.start_s, m.end_s, round(math.degrees(m.angle_rad)), m.kind) for m in man] == [
         (100.0, 120.0, 180, "uturn"), (220.0, 410.0, -360, "arc"), (420.0, 420.0, 45, "turn")]
     assert Manoeuvre(0.0, 0.0, rad(90.0)).kind == "turn"
+    assert Manoeuvre(0.0, 0.0, rad(-90.04)).kind == "turn"  # reported as −90.0°
+    assert Manoeuvre(0.0, 0.0, rad(90.06)).kind == "uturn"  # reported as 90.1°
     assert Manoeuvre(0.0, 0.0, rad(-135.0)).kind == "uturn"
 
 

@@ -115,7 +115,7 @@ def summarise(records: list[dict[str, Any]], checks: tuple[str, ...], scenario_f
     spread = {k: d for k in SPREAD
               if (d := _dist([(r.get("figures") or {}).get(k) for r in recs])) is not None}
     spread["severity"] = _dist([r["severity"] for r in recs]) or {}
-    cpu = [r.get("cpu_s") for r in recs if r.get("cpu_s")]
+    cpu = [float(r["cpu_s"]) for r in recs if r.get("cpu_s")]
     return {"missions": len(recs), "checks": list(checks), "all": _group(recs, checks),
             "by_family": {f: _group([r for r in recs if r["family"] == f], checks)
                           for f in families},
