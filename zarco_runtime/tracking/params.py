@@ -15,7 +15,7 @@ distances d_i, physical reply windows).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from zarco_core.config import spec
 from zarco_core.lbl import LblNetworkParams
@@ -140,6 +140,20 @@ class TrackerParams:
                                min=0.1, max=3600.0)
     lost_sigma_m: float = spec(30.0, "m", "predicted position 1σ above this: LOST",
                                min=0.1, max=1e5)
+    calibrate: bool = spec(True, "", "estimate the sound speed (and per-beacon range "
+                           "biases) online from the redundancy of the ranges; off: the "
+                           "configured network is taken as exact")
+    sound_speed_sigma_mps: float = spec(10.0, "m/s", "1σ uncertainty of the configured "
+                                        "sound speed (a CTD cast: 5–10 m/s)",
+                                        min=0.01, max=100.0)
+    sound_speed_walk_mps: float = spec(0.01, "m/s/√s", "random walk of the sound speed "
+                                       "(how fast the water may change it)",
+                                       min=0.0, max=10.0)
+    sound_speed_converged_mps: float = spec(1.5, "m/s", "the estimate has converged when "
+                                            "its 1σ is at most this", min=0.01, max=100.0)
+    range_bias_sigma_m: float = spec(1.0, "m", "1σ prior of each beacon's range bias (a "
+                                     "turnaround error of 1 ms is 0.75 m; 0: no bias "
+                                     "estimated)", min=0.0, max=100.0)
     clock_tol_s: float = spec(2.0, "s", "an event whose runtime-minus-UTC time differs "
                               "from the running estimate by more than this is refused "
                               "(`clock`), unless 5 in a row agree (the clock jumped)",
@@ -198,6 +212,12 @@ class Network:
                    tuple(tau[i] - timing_tol_s for i in range(len(ids))),
                    tuple(tau[i] + 2.0 * d[i] / c + timing_tol_s for i in range(len(ids))),
                    p.auv_delay_s, c, k, timing_tol_s)
+
+    def with_sound_speed(self, c: float) -> Network:
+        """The same network with sound speed ``c`` (m/s) and its reply windows."""
+        tol = self.tol
+        return replace(self, c=c, reply_hi=tuple(
+            self.tau[i] + 2.0 * self.d[i] / c + tol for i in range(len(self.ids))))
 
     @property
     def n(self) -> int:

@@ -72,8 +72,9 @@ from typing import Any
 from zarco_core.auv_messages import AuvFix, AuvTrack, BuoyStatus, TrackFlags
 from zarco_runtime.tracking.acquire import Acquisition, InitEntry
 from zarco_runtime.tracking.assembly import FixAssembly, Prediction
+from zarco_runtime.tracking.calibration import SoundSpeedEstimator
 from zarco_runtime.tracking.cycles import Cycle, CycleAssembler
-from zarco_runtime.tracking.fix import CircleFix, cycle_ranges, range_variances
+from zarco_runtime.tracking.fix import CircleFix, CycleRanges, cycle_ranges, range_variances
 from zarco_runtime.tracking.imm import Imm
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.maneuver import ManeuverDetector
@@ -81,6 +82,8 @@ from zarco_runtime.tracking.params import Network, TrackerParams
 from zarco_runtime.tracking.rls import LineRls
 from zarco_runtime.tracking.timemap import ClockCheck, TimeMap
 
+#: the ranges are recomputed at a new sound speed once the estimate moved this far (m/s)
+SOUND_SPEED_STEP_MPS = 0.01
 #: cycles dropped in a row after which the prediction no longer narrows the
 #: closing window (see AuvTracker._predict_range)
 WINDOW_OFF_DROPS = 6
@@ -96,7 +99,13 @@ class AuvTracker:
     def __init__(self, params: TrackerParams) -> None:
         params.validate()
         self.p = params
-        self.net: Network = Network.from_params(params.network, params.timing_tol_s)
+        #: the network as configured (the prior sound speed c₀)
+        self.net0: Network = Network.from_params(params.network, params.timing_tol_s)
+        #: the network at the estimated sound speed (what the ranges are computed with)
+        self.net: Network = self.net0
+        self.cal: SoundSpeedEstimator | None = (SoundSpeedEstimator(params, self.net0)
+                                                if params.calibrate else None)
+        self._cal_restart = True
         self.depth = params.auv_depth_m
         self.cycles = CycleAssembler(self.net, params.auv_depth_m, params.max_range_m,
                                      params.sequence, self._predict_range, 4.0,
@@ -245,7 +254,7 @@ class AuvTracker:
     def _on_cycle(self, cyc: Cycle, out: Out) -> None:
         net = self.net
         p = self.p
-        rg = cycle_ranges(cyc, net)
+        rg = self._ranges(cyc)
         r_i, r_l = rg.r_i, rg.r_l
         if math.isnan(r_l):  # no reply heard: the range to the beacon only
             r_l = r_i
@@ -284,6 +293,48 @@ class AuvTracker:
             self._accepted(t_em, cyc.t, fx, fy, var_i + var_l, out)
             return
         self._track_cycle(cyc, rg.r_i, t_em, cf, entry, r_i, r_l, bias, var_i, var_l, out)
+
+    def _ranges(self, cyc: Cycle) -> CycleRanges:
+        """The cycle's ranges at the estimated sound speed, corrected for the
+        estimated range bias of its beacon (:mod:`.calibration`)."""
+        net = self.net
+        rg = cycle_ranges(cyc, net)
+        if self.cal is not None:
+            b = self.cal.bias(rg.index)
+            if b != 0.0:
+                rg.r_i -= b
+                if rg.index != net.listener:
+                    rg.r_l += b
+                    rg.emission_utc_s = cyc.t_i - rg.r_l / net.c
+        return rg
+
+    def _calibrate(self, cyc: Cycle, t_em: float, idx: int, bias: float, reply: bool,
+                   var_i: float, var_l: float) -> None:
+        """Fold an accepted cycle's ranges into the calibration (``reply``: its
+        listener range too) and move the network to the new sound speed."""
+        cal = self.cal
+        if cal is None:
+            return
+        kf = self.kf
+        if self._cal_restart or not cal.initialised:
+            # the motion filter's state already holds this cycle: start from it
+            cal.start(kf.t, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.P)
+            self._cal_restart = False
+            return
+        cal.predict(t_em, self.man.maneuvering)
+        rg0 = cycle_ranges(cyc, self.net0)
+        cal.beacon_range(idx, rg0.r_i - bias, var_i)
+        if reply and idx != self.net0.listener:
+            cal.listener_range(idx, rg0.r_l - bias, var_l)
+        c = cal.sound_speed_mps
+        if abs(c - self.net.c) > SOUND_SPEED_STEP_MPS:
+            self._set_network(self.net0.with_sound_speed(c))
+
+    def _set_network(self, net: Network) -> None:
+        self.net = net
+        self.cycles.net = net
+        self.acq.net = net
+        self.asm.net = net
 
     def _track_cycle(self, cyc: Cycle, r_raw: float, t_em: float, cf: CircleFix,
                      entry: InitEntry, r_i: float, r_l: float, bias: float, var_i: float,
@@ -345,6 +396,7 @@ class AuvTracker:
             asm.remember(idx, t_em, r_i, var_i)
             asm.remember(self.net.listener, t_em, r_l, var_l)
             self._accepted(t_em, cyc.t, fx, fy, e, out)
+            self._calibrate(cyc, t_em, idx, bias, True, var_i, var_l)
             return
         self.dropped["innovation"] += 1
         if self.acq.refused(entry):
@@ -421,6 +473,7 @@ class AuvTracker:
             return False
         self._last_range_only = True
         self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out)
+        self._calibrate(cyc, res.t_em, idx, res.bias, False, res.var, res.var)
         return True
 
     # ------------------------------------------------------- initialisation
@@ -432,6 +485,7 @@ class AuvTracker:
         ``chosen`` (:meth:`.acquire.Acquisition.init_filter`)."""
         self.acq.init_filter(self.kf, recent, last, chosen, velocity)
         self.man.reset()
+        self._cal_restart = True
         if self._ever_init:
             self._reacquired_utc = last.t
         self._ever_init = True
@@ -524,7 +578,14 @@ class AuvTracker:
         kx = kf.x
         return AuvTrack(t, x0, y0, vx, vy, math.atan2(vy, vx), v, h, rls.covariance(),
                         rls.t0 + off, rls.t0, age, self._flags(age), self._lost,
-                        kx[0], kx[1], kx[2], kx[3], kf.pos_sigma())
+                        kx[0], kx[1], kx[2], kx[3], kf.pos_sigma(), *self._sound_speed())
+
+    def _sound_speed(self) -> tuple[float, float, bool]:
+        """(sound speed m/s, its 1σ m/s, converged) for the track."""
+        cal = self.cal
+        if cal is None:
+            return self.net.c, 0.0, False
+        return cal.sound_speed_mps, cal.sound_speed_sigma_mps, cal.converged
 
     def _track(self, t: float, last: AuvTrack) -> AuvTrack:
         """``last`` re-stamped at ``t`` with its age and flags brought up to date."""
@@ -532,7 +593,8 @@ class AuvTracker:
         return AuvTrack(t, last.x0_m, last.y0_m, last.vx_mps, last.vy_mps, last.psi_auv_rad,
                         last.v_auv_mps, last.h_auv_m, last.cov, last.t0, last.t0_utc_s, age,
                         self._flags(age), self._lost, last.kf_x_m, last.kf_y_m,
-                        last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m)
+                        last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m,
+                        *self._sound_speed())
 
     def _check_lost(self, t: float | None, out: Out) -> None:
         """Declare the track lost when silent too long or too uncertain."""
