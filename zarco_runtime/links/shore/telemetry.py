@@ -22,8 +22,10 @@ clockwise from true north in [0, 360); a value the boat does not know is
     ``components`` {name: {state, restarts}} and the ``link``'s own counters.
 ``auv`` (per track update)
     the AUV's estimated ``lat_deg``, ``lon_deg``, ``course_deg``,
-    ``speed_mps``, ``status`` (acquiring, tracking, turning, stale, lost) and
-    ``distance_m``, the horizontal distance from the vessel.
+    ``speed_mps``, ``status`` (acquiring, tracking, turning, stale, lost),
+    ``distance_m``, the horizontal distance from the vessel, and
+    ``sound_speed_mps``, ``sound_speed_sigma_mps``: the sound speed the
+    tracker computes the ranges with (its online estimate) and its 1σ.
 ``event`` (per event)
     ``kind`` (mode, failsafe, ack, fault, component, mission), ``text``,
     ``source``.
@@ -132,7 +134,9 @@ def auv(utc: float, track: AuvTrack, frame: LocalFrame, nav: NavState | None
     return {"t": round(utc, 3), "lat_deg": num(lat, 8), "lon_deg": num(lon, 8),
             "course_deg": num(deg360(track.psi_auv_rad), 2),
             "speed_mps": num(track.v_auv_mps, 3),
-            "status": auv_status(track.flags, track.lost), "distance_m": num(dist, 2)}
+            "status": auv_status(track.flags, track.lost), "distance_m": num(dist, 2),
+            "sound_speed_mps": num(track.sound_speed_mps, 2),
+            "sound_speed_sigma_mps": num(track.sound_speed_sigma_mps, 2)}
 
 
 def event(utc: float, ev: Event) -> dict[str, Any]:
