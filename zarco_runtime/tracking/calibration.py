@@ -26,9 +26,10 @@ motion filter, on the state::
 
     [x, y, vx, vy, k, β_0 … β_{n−1}]       NED m, m/s, 1, m
 
-with a constant-velocity model (white acceleration ``accel_psd`` on a
-straight leg, ``maneuver_accel_psd`` while the tracker's filter says the AUV
-manoeuvres: a turn moves the position, not k), k a slow random walk
+with a loose constant-velocity model (white acceleration
+``maneuver_accel_psd``: it ties the ranges of a few seconds together, but the
+AUV's straight line is no evidence of the sound speed — a turn moves the
+position, not k), k a slow random walk
 (``sound_speed_walk_mps`` per √s, relative to c₀) about the prior
 (``sound_speed_sigma_mps``), each β a constant with prior σ
 ``range_bias_sigma_m``.  Each range the tracker accepted is one scalar update
@@ -134,13 +135,12 @@ class Calibration:
         self.t = t
         self.initialised = True
 
-    def predict(self, t: float, maneuvering: bool) -> None:
+    def predict(self, t: float) -> None:
         """Propagate to UTC ``t`` (constant velocity; random walk of k)."""
         dt = t - self.t
         if dt <= 0.0:
             return
-        p = self.p
-        q = p.maneuver_accel_psd if maneuvering else p.accel_psd
+        q = self.p.maneuver_accel_psd
         x, P = self.x, self.P
         x[0] += x[2] * dt
         x[1] += x[3] * dt
@@ -255,9 +255,9 @@ class SoundSpeedEstimator:
         for m in self.models:
             m.start(t, x, y, vx, vy, P4)
 
-    def predict(self, t: float, maneuvering: bool) -> None:
+    def predict(self, t: float) -> None:
         for m in self.models:
-            m.predict(t, maneuvering)
+            m.predict(t)
 
     def beacon_range(self, j: int, m: float, var: float) -> None:
         """The nominal range m_j (m, motion-corrected, at the prior sound speed)

@@ -60,6 +60,12 @@ class TrackerParams:
     accel_psd: float = spec(0.004, "m²/s³", "constant-velocity model: white-acceleration "
                             "spectral density q (the quiet model of the IMM)",
                             min=1e-8, max=100.0)
+    arc_rate_psd: float = spec(1e-5, "rad²/s³", "IMM: turn-rate random walk of the quiet "
+                               "model (a straight line, or an arc it follows without lag)",
+                               min=0.0, max=1.0)
+    arc_rate_dps: float = spec(0.4, "deg/s", "IMM: an estimated turn rate at least this "
+                               "is a turn (an arc: the line follows the filter while it "
+                               "lasts)", min=0.0, max=90.0)
     motion_model: str = spec("imm", "", "the AUV filter: 'imm' (models side by side: "
                              "straight, manoeuvring, coordinated turn) or 'cv' (one "
                              "constant-velocity model)", choices=list(MOTION_MODELS))
@@ -70,6 +76,12 @@ class TrackerParams:
                                  "coordinated-turn model", min=1e-8, max=100.0)
     turn_rate_psd: float = spec(0.003, "rad²/s³", "IMM: turn-rate random walk of the "
                                 "coordinated-turn model", min=1e-8, max=10.0)
+    turn_rate_dps: float = spec(10.0, "deg/s", "IMM: the AUV's usual turn rate; two "
+                                "coordinated-turn models (to port, to starboard) expect "
+                                "turns at it (a third estimates any rate: arcs)",
+                                min=0.0, max=90.0)
+    max_turn_rate_dps: float = spec(20.0, "deg/s", "IMM: the AUV never turns faster than "
+                                    "this", min=0.1, max=180.0)
     straight_sojourn_s: float = spec(60.0, "s", "IMM: mean time the AUV keeps a straight "
                                      "line (sets the switching probability)",
                                      min=1.0, max=1e5)
@@ -95,6 +107,10 @@ class TrackerParams:
     reacquire_after: int = spec(3, "", "gated fixes within init_window_s that make the "
                                 "tracker test whether the fixes, not the filter, are right "
                                 "(and re-initialise from them if so)", min=1, max=1000)
+    reanchor_after: int = spec(3, "", "consistent fixes (the other beacons agree) refused "
+                               "in a row after which the filter's covariance is opened "
+                               "until the fix passes (re-anchoring, not coasting)",
+                               min=1, max=1000)
     init_window_s: float = spec(30.0, "s", "fixes this recent vote for the mirror choice at "
                                 "(re)initialisation", min=1.0, max=600.0)
     init_agree_m: float = spec(10.0, "m", "candidates from two baselines agree within this "

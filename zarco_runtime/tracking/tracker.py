@@ -75,7 +75,8 @@ from zarco_runtime.tracking.assembly import FixAssembly, Prediction
 from zarco_runtime.tracking.calibration import SoundSpeedEstimator
 from zarco_runtime.tracking.cycles import Cycle, CycleAssembler
 from zarco_runtime.tracking.fix import CircleFix, CycleRanges, cycle_ranges, range_variances
-from zarco_runtime.tracking.imm import Imm
+from zarco_runtime.tracking.gates import NoiseScale
+from zarco_runtime.tracking.imm import Imm, ModelSpec
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.maneuver import ManeuverDetector
 from zarco_runtime.tracking.params import Network, TrackerParams
@@ -84,6 +85,11 @@ from zarco_runtime.tracking.timemap import ClockCheck, TimeMap
 
 #: the ranges are recomputed at a new sound speed once the estimate moved this far (m/s)
 SOUND_SPEED_STEP_MPS = 0.01
+#: 1σ (deg/s) of the turn rate the two fixed-rate turning models start a turn with
+TURN_RATE_SIGMA_DPS = 2.0
+#: the measured noise scale learns from updates while the IMM's probability of a
+#: manoeuvre is at most this
+STRAIGHT_NOISE_PROBABILITY = 0.2
 #: cycles dropped in a row after which the prediction no longer narrows the
 #: closing window (see AuvTracker._predict_range)
 WINDOW_OFF_DROPS = 6
@@ -112,11 +118,21 @@ class AuvTracker:
                                      params.closing_margin_m)
         self.kf: CvKalman | Imm
         if params.motion_model == "imm":
-            self.kf = Imm([("cv", params.accel_psd, 0.0),
-                           ("cv", params.maneuver_accel_psd, 0.0),
-                           ("ct", params.turn_accel_psd, params.turn_rate_psd)],
+            w0 = math.radians(params.turn_rate_dps)
+            w_max = math.radians(params.max_turn_rate_dps)
+            w_var = math.radians(TURN_RATE_SIGMA_DPS) ** 2
+            turn = ModelSpec("ct", params.turn_accel_psd, params.turn_rate_psd,
+                             omega_max=w_max)
+            self.kf = Imm([ModelSpec("ct", params.accel_psd, params.arc_rate_psd,
+                                     omega_max=w_max),
+                           ModelSpec("cv", params.maneuver_accel_psd), turn,
+                           turn._replace(q_omega=w_var / params.turn_sojourn_s, omega0=w0,
+                                         omega0_var=w_var),
+                           turn._replace(q_omega=w_var / params.turn_sojourn_s, omega0=-w0,
+                                         omega0_var=w_var)],
                           (params.straight_sojourn_s, params.maneuver_sojourn_s,
-                           params.turn_sojourn_s), (0.5, 0.25, 0.25))
+                           params.turn_sojourn_s, params.turn_sojourn_s, params.turn_sojourn_s),
+                          (0.6, 0.1, 0.1, 0.1, 0.1))
         else:
             self.kf = CvKalman(params.accel_psd)
         self.rls = LineRls(params.rls_forgetting, params.turn_cusum_drift,
@@ -125,6 +141,9 @@ class AuvTracker:
         self.acq = Acquisition(params, self.net)
         self.asm = FixAssembly(params, self.net)
         self.man = ManeuverDetector(params)
+        self.noise = NoiseScale()
+        #: consistent fixes refused in a row (re-anchoring)
+        self._refused_run = 0
         self.dropped: Counter[str] = Counter()
         #: fixes accepted by the filter, and all two-circle fixes computed
         self.fixes_accepted = 0
@@ -279,7 +298,9 @@ class AuvTracker:
         self._bad_geometry = cf.gap_m > 0.0
         entry = InitEntry(t_em, idx, cf, r_i, r_l)
         self.acq.buf.append(entry)
-        var_i, var_l = range_variances(net, idx, p.timing_sigma_s, p.range_sigma_m)
+        var0 = range_variances(net, idx, p.timing_sigma_s, p.range_sigma_m)
+        scale = self.noise.scale
+        var_i, var_l = var0[0] * scale, var0[1] * scale
         if not kf.initialised:
             voted = self.acq.vote()
             if voted is None:
@@ -292,7 +313,8 @@ class AuvTracker:
             self._emit_fix(cyc, t_em, cf, fx, fy, r_i, r_l, bias, True, out)
             self._accepted(t_em, cyc.t, fx, fy, var_i + var_l, out)
             return
-        self._track_cycle(cyc, rg.r_i, t_em, cf, entry, r_i, r_l, bias, var_i, var_l, out)
+        self._track_cycle(cyc, rg.r_i, t_em, cf, entry, r_i, r_l, bias, var_i, var_l, var0,
+                          out)
 
     def _ranges(self, cyc: Cycle) -> CycleRanges:
         """The cycle's ranges at the estimated sound speed, corrected for the
@@ -321,7 +343,7 @@ class AuvTracker:
             cal.start(kf.t, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.P)
             self._cal_restart = False
             return
-        cal.predict(t_em, self.man.maneuvering)
+        cal.predict(t_em)
         rg0 = cycle_ranges(cyc, self.net0)
         cal.beacon_range(idx, rg0.r_i - bias, var_i)
         if reply and idx != self.net0.listener:
@@ -338,10 +360,12 @@ class AuvTracker:
 
     def _track_cycle(self, cyc: Cycle, r_raw: float, t_em: float, cf: CircleFix,
                      entry: InitEntry, r_i: float, r_l: float, bias: float, var_i: float,
-                     var_l: float, out: Out) -> None:
+                     var_l: float, var0: tuple[float, float], out: Out) -> None:
         """A two-circle cycle while the filter runs: mirror choice, consistency
-        with the other beacons, filter update, manoeuvre detection, and the
-        re-acquisition test after a run of refusals."""
+        with the other beacons, filter update, manoeuvre detection, re-anchoring
+        after a run of refused consistent fixes, and the re-acquisition test
+        after a run of refusals.  ``var_i``, ``var_l``: the ranges' variances
+        at the measured noise scale (m²), ``var0`` as configured."""
         p = self.p
         kf = self.kf
         asm = self.asm
@@ -383,9 +407,20 @@ class AuvTracker:
             return
         lat = self.man.lateral(kf, fx - pr.px, fy - pr.py, pr.pxx, pr.pxy, pr.pyy, rows[0],
                                rows[1], var_i, var_l)
-        ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
+        ok, d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
         if lat is not None and self._maneuver(lat) and not ok:
-            ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
+            ok, d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
+        if not ok:
+            self._refused_run += 1
+            if self._refused_run >= p.reanchor_after and math.isfinite(d2):
+                # the other beacons confirm the fix: the filter is off, not the
+                # fix — open its covariance until the fix passes, and take it
+                s_row = 0.5 * (pr.pxx + pr.pyy) + 0.5 * e
+                kf.inflate(NoiseScale.reanchor_variance(d2, p.gate_chi2, s_row),
+                           p.turn_vel_sigma_mps ** 2)
+                ok, d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
+                if ok:
+                    self.dropped["reanchored"] += 1
         fix = AuvFix(cyc.t, t_em, cyc.beacon, ls[0], ls[1], mx, my, r_i, r_l, bias, ok,
                      False, ls[2], ls[3], ls[4])
         self.last_fix = fix
@@ -395,8 +430,13 @@ class AuvTracker:
             # only ranges the filter accepted take part in later fixes
             asm.remember(idx, t_em, r_i, var_i)
             asm.remember(self.net.listener, t_em, r_l, var_l)
+            if self.net.n >= 3:
+                chi2, dof = asm.last_chi2
+                self.noise.observe(chi2, dof)
+            else:
+                self._observe_noise(d2, 2)
             self._accepted(t_em, cyc.t, fx, fy, e, out)
-            self._calibrate(cyc, t_em, idx, bias, True, var_i, var_l)
+            self._calibrate(cyc, t_em, idx, bias, True, var0[0], var0[1])
             return
         self.dropped["innovation"] += 1
         if self.acq.refused(entry):
@@ -455,6 +495,7 @@ class AuvTracker:
         """One range to beacon ``idx`` (:meth:`.assembly.FixAssembly.range_only`),
         published as a range-only fix.  True when accepted; with ``fallback`` a
         refusal is neither counted nor published."""
+        self.asm.var_scale = self.noise.scale
         res = self.asm.range_only(self.kf, cyc, idx, r, fallback)
         if res.status in ("uninitialised", "depth"):
             if not fallback:
@@ -472,9 +513,22 @@ class AuvTracker:
             self.dropped["innovation"] += 1
             return False
         self._last_range_only = True
+        if self.net.n < 3:
+            self._observe_noise(res.d2, 1)
         self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out)
-        self._calibrate(cyc, res.t_em, idx, res.bias, False, res.var, res.var)
+        var0 = res.var / self.noise.scale
+        self._calibrate(cyc, res.t_em, idx, res.bias, False, var0, var0)
         return True
+
+    def _observe_noise(self, d2: float, rows: int) -> None:
+        """With two beacons (no joint fix to measure the noise by), an accepted
+        update's d² feeds the measured noise scale while the AUV flies straight
+        (:mod:`.gates`)."""
+        kf = self.kf
+        if self.man.maneuvering or (isinstance(kf, Imm) and kf.maneuver_probability
+                                    > STRAIGHT_NOISE_PROBABILITY):
+            return
+        self.noise.observe(d2, rows)
 
     # ------------------------------------------------------- initialisation
 
@@ -502,6 +556,7 @@ class AuvTracker:
         rls = self.rls
         man = self.man
         self.fixes_accepted += 1
+        self._refused_run = 0
         self._last_update_utc = t_em
         drops = self.cycles.cycles_dropped
         self._drops_at_update = drops["missed_ping"] + drops["superseded"] + drops["sequence"]
