@@ -7,8 +7,25 @@ from typing import Any
 
 import numpy as np
 
+from zarco_core.paths import PathError, writable_file
 from zarco_runtime.guidance.mission import Leg
 from zarco_tools.sim_report import SETTLE_M, TrackLog, xtrack_series
+
+
+def image_path(path: str | Path, what: str = "--plot") -> Path:
+    """An image to write after a run, checked before it: a writable file
+    (:func:`zarco_core.paths.writable_file`) whose extension names a type
+    matplotlib writes (``.png``, ``.pdf``, ``.svg``, ...).  Raises PathError."""
+    p = writable_file(path, what)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    types = FigureCanvasAgg.get_supported_filetypes()
+    ext = p.suffix.lower().lstrip(".")
+    if ext not in types:
+        known = ", ".join(f".{t}" for t in sorted(types))
+        raise PathError(path, f"not an image type that can be written: "
+                        f"{('.' + ext) if ext else 'no extension'} (one of {known})", what)
+    return p
 
 
 def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str,
