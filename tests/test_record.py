@@ -18,6 +18,7 @@ from typing import Any
 import pytest
 from mcap.reader import make_reader
 
+from zarco_core.auv_messages import AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, run_virtual
 from zarco_core.messages import Event, Fault, NavState
@@ -26,7 +27,7 @@ from zarco_runtime.links.recorder.writer import Options, Recording
 from zarco_runtime.settings import RuntimeConfig
 from zarco_tools.log.export import export
 from zarco_tools.log.info import summarize
-from zarco_tools.log.plot import collect
+from zarco_tools.log.plot import collect, plot_recording
 from zarco_tools.log.reader import iter_messages, open_recording
 from zarco_tools.log.replay import replay, report
 from zarco_tools.scenario import load_scenario
@@ -190,6 +191,17 @@ def test_info_export_and_plot_read_the_recording(follow: Any, tmp_path: Path) ->
     assert f.kind == "follow" and f.truth
     assert f.log.x == res.log.x and f.log.t == res.log.t
     assert [a[1:] for a in f.extra["auv_log"]] == [a[1:] for a in res.extra["auv_log"]]
+    # the tracker's sound speed and its σ are in the recording as the bus had them,
+    # and the plot draws them
+    recorded = [(m.sound_speed_mps, m.sound_speed_sigma_mps, m.sound_speed_converged)
+                for m in f.extra["auv_msgs"] if isinstance(m, AuvTrack)]
+    on_bus = [(m.sound_speed_mps, m.sound_speed_sigma_mps, m.sound_speed_converged)
+              for m in res.extra["auv_msgs"] if isinstance(m, AuvTrack)]
+    assert recorded == on_bus and len(recorded) > 50
+    assert all(1400.0 < c < 1600.0 and 0.0 < sg < 10.5 for c, sg, _ in recorded)
+    png = tmp_path / "follow.png"
+    plot_recording(rec, png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")

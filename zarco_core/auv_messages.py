@@ -123,7 +123,12 @@ class AuvTrack:
     (m, m/s), ``kf_pos_sigma_m`` the RMS of its two position standard
     deviations.  ``fix_age_s``: runtime seconds since the emission time of the
     last accepted fix.  ``flags``: :class:`TrackFlags` bits; ``lost`` mirrors
-    the LOST bit.
+    the LOST bit.  ``sound_speed_mps``: the sound speed the ranges are
+    computed with — the tracker's online estimate (the configured one until
+    the geometry makes it observable, and when estimation is off);
+    ``sound_speed_sigma_mps`` its 1σ (the configured uncertainty while not
+    observable, 0 when estimation is off); ``sound_speed_converged``: that σ
+    is within the configured convergence bound.
     """
 
     t: float
@@ -145,3 +150,6 @@ class AuvTrack:
     kf_vx_mps: float
     kf_vy_mps: float
     kf_pos_sigma_m: float
+    sound_speed_mps: float = math.nan
+    sound_speed_sigma_mps: float = math.nan
+    sound_speed_converged: bool = False

@@ -32,6 +32,9 @@ from zarco_runtime.tracking.imm import Imm
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.params import TrackerParams
 
+#: an arc: the estimated turn rate this many σ from zero (and above arc_rate_dps)
+ARC_SIGMAS = 3.0
+
 
 class ManeuverDetector:
     """The CUSUM's state, the IMM's manoeuvre state and the pending line restart."""
@@ -98,12 +101,19 @@ class ManeuverDetector:
 
     def imm_state(self, kf: CvKalman | Imm) -> str:
         """The IMM's manoeuvre state after an update: ``enter`` (the manoeuvring
-        model's probability rose to ``maneuver_on``), ``during``, ``exit`` (it
-        fell to ``maneuver_off``), or "" (straight, or a single-model filter)."""
+        models' probability rose to ``maneuver_on``, or the AUV turns at
+        ``arc_rate_dps`` or more: an arc), ``during``, ``exit`` (it fell to
+        ``maneuver_off`` and the turn rate below ``arc_rate_dps``), or ""
+        (straight, or a single-model filter)."""
         if not isinstance(kf, Imm):
             return ""
         mu = kf.maneuver_probability
         p = self.p
+        w, w_var = kf.quiet_turn_rate
+        arc = abs(w) >= math.radians(p.arc_rate_dps) and w * w >= ARC_SIGMAS ** 2 * w_var
+        if arc:
+            # a steady turn (an arc): the straight line would lag it
+            mu = max(mu, p.maneuver_on)
         if not self.maneuvering:
             if mu >= p.maneuver_on:
                 self.maneuvering = True
