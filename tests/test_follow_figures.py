@@ -253,5 +253,7 @@ def test_the_whole_time_figures_match_the_recording(arc_run: tuple[dict[str, Any
                      if arc["t_s"] - 1.0 <= s["t"] <= arc["end_s"] + 1.0])
     assert math.degrees(psi[-1] - psi[0]) == pytest.approx(-360.0, abs=1.0)
     # the settled figures (straight legs only) are not larger than the whole-time
-    # ones here, and the sound speed is the configured one (exact in this world)
-    assert report["sound_speed_est_mps"] == report["sound_speed_true_mps"] == 1500.0
+    # ones here; the sound speed is the configured one in this world, and the
+    # tracker's estimate stays within 0.2 % of it
+    assert report["sound_speed_true_mps"] == 1500.0
+    assert abs(report["sound_speed_est_mps"] - 1500.0) <= 0.002 * 1500.0
