@@ -155,8 +155,6 @@ def test_manoeuvres_merge_a_lawnmower_end_and_keep_an_arc_whole() -> None:
     assert [(m.start_s, m.end_s, round(math.degrees(m.angle_rad)), m.kind) for m in man] == [
         (100.0, 120.0, 180, "uturn"), (220.0, 410.0, -360, "arc"), (420.0, 420.0, 45, "turn")]
     assert Manoeuvre(0.0, 0.0, rad(90.0)).kind == "turn"
-    assert Manoeuvre(0.0, 0.0, rad(-90.04)).kind == "turn"  # reported as −90.0°
-    assert Manoeuvre(0.0, 0.0, rad(90.06)).kind == "uturn"  # reported as 90.1°
     assert Manoeuvre(0.0, 0.0, rad(-135.0)).kind == "uturn"
 
 
@@ -255,6 +253,7 @@ def test_the_whole_time_figures_match_the_recording(arc_run: tuple[dict[str, Any
                      if arc["t_s"] - 1.0 <= s["t"] <= arc["end_s"] + 1.0])
     assert math.degrees(psi[-1] - psi[0]) == pytest.approx(-360.0, abs=1.0)
     # the settled figures (straight legs only) are not larger than the whole-time
-    # ones here, and the tracker's sound speed is within 0.2 % of the truth (the configured one)
+    # ones here; the sound speed is the configured one in this world, and the
+    # tracker's estimate stays within 0.2 % of it
     assert report["sound_speed_true_mps"] == 1500.0
     assert abs(report["sound_speed_est_mps"] - 1500.0) <= 0.002 * 1500.0

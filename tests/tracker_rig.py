@@ -61,13 +61,16 @@ class Run:
 def run(waypoints: list[list[float]], duration_s: float, *, seed: int = 1,
         lbl: dict[str, Any] | None = None, survey: dict[str, Any] | None = None,
         trk: dict[str, Any] | None = None, speed_mps: float = 1.0, depth_m: float = 10.0,
-        start_delay_s: float = 0.0, at_end: str = "continue", dt: float = 0.5) -> Run:
-    """Simulate ``duration_s`` and sample the tracker every ``dt`` s."""
+        start_delay_s: float = 0.0, at_end: str = "continue", dt: float = 0.5,
+        arcs: list[list[float]] | None = None, turn_rate_dps: float = 10.0) -> Run:
+    """Simulate ``duration_s`` and sample the tracker every ``dt`` s (``arcs``,
+    ``turn_rate_dps``: the simulated AUV's, :class:`~drivers.sim.auv.AuvParams`)."""
     lp = LblParams(**(lbl or {}))
     truth = lp.network()
     told = LblNetworkParams(**{**vars_of(truth), **(survey or {})})
     auv = Auv(AuvParams(waypoints=waypoints, speed_mps=speed_mps, depth_m=depth_m,
-                        start_delay_s=start_delay_s, at_end=at_end))
+                        start_delay_s=start_delay_s, at_end=at_end, arcs=arcs or [],
+                        turn_rate_dps=turn_rate_dps))
     world = AcousticWorld(lp, auv, seed, start_utc_epoch_s=EPOCH)
     opts = dict(trk or {})
     prior = opts.pop("prior", waypoints[0])

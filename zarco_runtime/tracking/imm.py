@@ -236,6 +236,18 @@ class _Model:
         self._clamp()
 
 
+def turn_step(x: float, y: float, vx: float, vy: float, w: float, dt: float
+              ) -> tuple[float, float, float, float]:
+    """Position and velocity after ``dt`` s of a coordinated turn at ``w`` rad/s
+    (positive to starboard; a straight line when w is 0)."""
+    if abs(w) < 1e-6:
+        return x + vx * dt, y + vy * dt, vx, vy
+    th = w * dt
+    s, c = math.sin(th), math.cos(th)
+    a, b = s / w, (1.0 - c) / w
+    return x + a * vx - b * vy, y + b * vx + a * vy, c * vx - s * vy, s * vx + c * vy
+
+
 class ModelSpec(NamedTuple):
     """One model of the bank (:class:`_Model`): kind (``cv``, ``ct``), white
     acceleration q (m²/s³), turn-rate random walk q_ω (rad²/s³), the turn rate
@@ -284,6 +296,17 @@ class Imm:
         """The quiet model's turn rate (rad/s) and its variance: a steady arc."""
         m = self.models[0]
         return m.x[4], m.P[4][4]
+
+    def reset_quiet_turn_rate(self, var: float) -> None:
+        """Set the quiet model's turn rate back to 0 with variance ``var``
+        (rad²/s²): a sharp turn is over, the AUV flies straight until its
+        measurements say it arcs."""
+        m = self.models[0]
+        m.x[4] = 0.0
+        for k in range(4):
+            m.P[k][4] = m.P[4][k] = 0.0
+        m.P[4][4] = var
+        self._combine()
 
     @property
     def maneuver_probability(self) -> float:

@@ -76,7 +76,7 @@ from zarco_runtime.tracking.calibration import SoundSpeedEstimator
 from zarco_runtime.tracking.cycles import Cycle, CycleAssembler
 from zarco_runtime.tracking.fix import CircleFix, CycleRanges, cycle_ranges, range_variances
 from zarco_runtime.tracking.gates import NoiseScale
-from zarco_runtime.tracking.imm import Imm, ModelSpec
+from zarco_runtime.tracking.imm import Imm, ModelSpec, turn_step
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.maneuver import ManeuverDetector
 from zarco_runtime.tracking.params import Network, TrackerParams
@@ -203,6 +203,8 @@ class AuvTracker:
                 return out[-1]  # type: ignore[return-value]
             if self.last_track is None:
                 return None
+            if self.kf.initialised and not self._lost:
+                return self._predicted(t, self.last_track)
             return self._track(t, self.last_track)
         except Exception:
             self.dropped["internal"] += 1
@@ -592,6 +594,10 @@ class AuvTracker:
                 rls.reset(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], 0.5 * (P[0][0] + P[1][1]),
                           0.5 * (P[2][2] + P[3][3]), 0.5 * (P[0][2] + P[1][3]),
                           max(kf.pos_sigma(), floor))
+            elif man.arcing:
+                # an arc: the track says turning (the filter, whose turn rate
+                # follows it, leads), the line is left to its fit
+                man.turn_utc = t_em
         track = self._build(t)
         self.last_track = track
         out.append(track)
@@ -649,6 +655,29 @@ class AuvTracker:
                         last.v_auv_mps, last.h_auv_m, last.cov, last.t0, last.t0_utc_s, age,
                         self._flags(age), self._lost, last.kf_x_m, last.kf_y_m,
                         last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m,
+                        *self._sound_speed())
+
+    def _predicted(self, t: float, last: AuvTrack) -> AuvTrack:
+        """The track brought forward to runtime ``t``: the filter's state
+        predicted along its turn rate (a coordinated turn: the course keeps
+        turning between fixes) and the line's origin moved to ``t``."""
+        off = self.clock.rt_offset()
+        t_utc = t - off
+        kf = self.kf
+        if t_utc <= kf.t:
+            return self._track(t, last)
+        w = kf.omega if isinstance(kf, Imm) else 0.0
+        x, y, vx, vy = turn_step(kf.x[0], kf.x[1], kf.x[2], kf.x[3], w, t_utc - kf.t)
+        _, _, pxx, _, pyy = kf.predicted(t_utc)
+        rls = self.rls
+        lx, ly = rls.position(t_utc)
+        lvx, lvy = rls.vx, rls.vy
+        v = math.hypot(lvx, lvy)
+        h = (lvy * lx - lvx * ly) / v if v > 0.0 else math.nan
+        age = t - (self._last_update_utc + off)
+        return AuvTrack(t, lx, ly, lvx, lvy, math.atan2(lvy, lvx), v, h,
+                        rls.covariance_at(t_utc), t, t_utc, age, self._flags(age), self._lost,
+                        x, y, vx, vy, math.sqrt(max(0.5 * (pxx + pyy), 0.0)),
                         *self._sound_speed())
 
     def _check_lost(self, t: float | None, out: Out) -> None:
