@@ -123,7 +123,9 @@ class AuvTrack:
     (m, m/s), ``kf_pos_sigma_m`` the RMS of its two position standard
     deviations.  ``fix_age_s``: runtime seconds since the emission time of the
     last accepted fix.  ``flags``: :class:`TrackFlags` bits; ``lost`` mirrors
-    the LOST bit.
+    the LOST bit.  ``plan_leg``: the leg of the AUV's plan (:class:`AuvPlan`,
+    0 = from its first point to its second) the AUV is on; −1 without a plan
+    or off it.
     """
 
     t: float
@@ -145,3 +147,23 @@ class AuvTrack:
     kf_vx_mps: float
     kf_vy_mps: float
     kf_pos_sigma_m: float
+    plan_leg: int = -1
+
+
+@dataclass(slots=True)
+class AuvPlan:
+    """The AUV's a-priori mission (paper V: the lines it flies "according to an a
+    priori mission plan"): the waypoints it is expected to fly through, in
+    order, as local NED points (north, east; metres).  A prior for the tracker
+    (where the legs turn) and the follow guidance (the corners to cut); the
+    AUV may still leave it (an adaptive mission), which the tracker detects.
+
+    Published by the supervisor when following starts (from the ``follow``
+    command's ``auv_plan`` or ``[mission] auv_plan``) and cleared when it
+    ends: an empty ``points`` means no plan.  ``source`` says where it came
+    from (``mission``, or the command's source, e.g. ``shore:alice``).
+    """
+
+    t: float
+    points: tuple[tuple[float, float], ...] = ()
+    source: str = ""

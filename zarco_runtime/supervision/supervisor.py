@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from zarco_core.auv_messages import AuvTrack
+from zarco_core.auv_messages import AuvPlan, AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
@@ -56,6 +56,7 @@ from zarco_runtime.guidance.directive import Directive, ManualThrust
 from zarco_runtime.guidance.mission import Leg, Mission, legs_from_points
 from zarco_runtime.supervision.failsafes import SEVERITY, FailsafeMonitor, Inputs
 from zarco_runtime.supervision.geofence import Fence
+from zarco_runtime.tracking.plan import geodetic_plan
 
 if TYPE_CHECKING:
     from zarco_runtime.settings import RuntimeConfig
@@ -106,13 +107,15 @@ class _Health:
 
 def mission_to_json(m: Mission) -> dict[str, Any]:
     return {"kind": m.kind, "name": m.name, "waypoints": [list(w) for w in m.waypoints],
-            "legs": [[lg.n0, lg.e0, lg.n1, lg.e1, lg.speed_mps] for lg in m.legs]}
+            "legs": [[lg.n0, lg.e0, lg.n1, lg.e1, lg.speed_mps] for lg in m.legs],
+            "auv_plan": [list(p) for p in m.auv_plan]}
 
 
 def mission_from_json(d: dict[str, Any]) -> Mission:
     legs = tuple(Leg(i, *map(float, lg)) for i, lg in enumerate(d.get("legs", [])))
     wps = tuple((float(a), float(b)) for a, b in d.get("waypoints", []))
-    return Mission(str(d["kind"]), legs, str(d.get("name", "")), wps)
+    plan = tuple((float(a), float(b)) for a, b in d.get("auv_plan", []))
+    return Mission(str(d["kind"]), legs, str(d.get("name", "")), wps, plan)
 
 
 class Supervisor:
@@ -148,6 +151,8 @@ class Supervisor:
         self.directive_t0 = self.directive.t
         self.auv_held = False
         self.mission: Mission | None = None  # the mission of the current mode
+        #: who gave the AUV plan of the follow mission being started
+        self.plan_source = "mission"
         self.saved: _Saved | None = self._load_state()
         self.loaded: Mission | None = self.boot.mission  # a mission given but not started
         self.pending_start = self.boot.autostart and self.boot.mission is not None
@@ -261,6 +266,11 @@ class Supervisor:
         if old in (Mode.LINES, Mode.FOLLOW) and mode not in (Mode.LINES, Mode.FOLLOW) \
                 and self.mission is not None:
             self._save_state()
+        if mode is Mode.FOLLOW or old is Mode.FOLLOW:
+            # the AUV's plan is in force while following: given when it starts,
+            # cleared when it ends
+            plan = mission.auv_plan if mode is Mode.FOLLOW and mission is not None else ()
+            self.bus.publish(AuvPlan(self.now(), plan, self.plan_source if plan else ""))
         self.mode = mode
         self.mission = mission
         self.seq += 1
@@ -371,7 +381,7 @@ class Supervisor:
             if mode is Mode.HOLD:
                 return self._hold(a, src)
             if mode is Mode.FOLLOW:
-                return self._follow(src)
+                return self._follow(src, {})
             if mode is Mode.LINES:
                 m = self.loaded or (self.saved.mission if self.saved and not self.saved.complete
                                     and self.saved.mission.kind == "lines" else None)
@@ -389,7 +399,7 @@ class Supervisor:
         if name == "mission":
             return self._mission(a, src)
         if name == "follow":
-            return self._follow(src)
+            return self._follow(src, a)
         if name == "thrust":
             if self.mode is not Mode.MANUAL:
                 return "not in manual mode"
@@ -424,14 +434,31 @@ class Supervisor:
         self._set_mode(Mode.HOLD, f"hold from {src}", point=point)
         return ""
 
-    def _follow(self, src: str) -> str:
+    def _follow(self, src: str, a: dict[str, object], m: Mission | None = None) -> str:
+        """Follow the AUV: with the mission ``m`` (a resumed or configured one), or
+        with the command's ``auv_plan`` ([[lat_deg, lon_deg], ...]; [] for none),
+        or without one, with the configured follow mission's plan."""
         why = self._cannot(Mode.FOLLOW)
         if why:
             return why
-        m = Mission("follow", name="follow")
+        if m is None:
+            boot = self.boot.mission
+            plan = boot.auv_plan if boot is not None and boot.kind == "follow" else ()
+            self.plan_source = "mission"
+            if "auv_plan" in a:
+                try:
+                    plan = geodetic_plan(a["auv_plan"], self.frame.to_ned)
+                except ValueError as exc:
+                    return f"auv_plan: {exc}"
+                self.plan_source = src
+            m = Mission("follow", name="follow", auv_plan=plan)
+        else:
+            self.plan_source = "mission" if m is self.boot.mission else src
         self.saved = _Saved(m)
         self._save_state()
-        self._set_mode(Mode.FOLLOW, f"follow from {src}", mission=m)
+        self._set_mode(Mode.FOLLOW, f"follow from {src}"
+                       + (f" with an AUV plan of {len(m.auv_plan)} points" if m.auv_plan
+                          else ""), mission=m)
         return ""
 
     def _mission(self, a: dict[str, object], src: str) -> str:
@@ -501,7 +528,7 @@ class Supervisor:
 
     def _start(self, m: Mission, leg: int, src: str) -> str:
         if m.kind == "follow":
-            return self._follow(src)
+            return self._follow(src, {}, m)
         why = self._cannot(Mode.LINES)
         if why:
             return why

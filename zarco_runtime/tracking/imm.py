@@ -38,6 +38,8 @@ from __future__ import annotations
 
 import math
 
+from zarco_runtime.tracking.plan import turn_velocity
+
 N = 5
 #: d² beyond which an innovation weighs no more in the model likelihoods
 LIKELIHOOD_CAP_CHI2 = 6.0
@@ -333,6 +335,13 @@ class Imm:
             P[1][1] += pos_var
             P[2][2] += vel_var
             P[3][3] += vel_var
+        self._combine()
+
+    def turn_to(self, course_rad: float) -> None:
+        """Turn every model's velocity onto ``course_rad`` (rad), speeds kept and
+        turn rates zeroed (a corner of the AUV's plan; :func:`~.plan.turn_velocity`)."""
+        for mdl in self.models:
+            turn_velocity(mdl.x, mdl.P, course_rad)
         self._combine()
 
     def update(self, rows: list[tuple[float, float]], z: list[float], var: list[float],

@@ -85,6 +85,7 @@ from zarco_runtime.tracking.fix import (
 from zarco_runtime.tracking.imm import Imm
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.params import Network, TrackerParams
+from zarco_runtime.tracking.plan import PlanMatcher
 from zarco_runtime.tracking.rls import LineRls
 
 #: the runtime-minus-UTC estimate may rise by this much per second (s/s), so it
@@ -168,6 +169,8 @@ class AuvTracker:
         self._var = range_variances  # local alias for the hot path
         #: newest range to each beacon: (emission UTC s, range m, variance m²)
         self._ranges: dict[int, tuple[float, float, float]] = {}
+        #: the AUV's a-priori plan: which leg it is on, its corners (:mod:`.plan`)
+        self.plan = PlanMatcher(params.plan)
 
     # ------------------------------------------------------------ public API
 
@@ -364,6 +367,7 @@ class AuvTracker:
             self._emit_fix(cyc, t_em, cf, fx, fy, r_i, r_l, bias, True, out)
             self._accepted(t_em, cyc.t, fx, fy, var_i + var_l, out)
             return
+        self._plan_corners(t_em)
         # mirror: the candidate nearer the prediction in the Mahalanobis sense
         px, py, pxx, pxy, pyy = kf.predicted(t_em)
         e = var_i + var_l
@@ -541,6 +545,8 @@ class AuvTracker:
             return cyc.t_i - r_l / c, r_l
 
         t_em, r_l = emission(r)
+        if self._plan_corners(t_em):
+            t_em, r_l = emission(r)
         px, py, _, _, _ = kf.predicted(t_em)
         bias = 0.0
         if p.motion_correction:
@@ -880,9 +886,23 @@ class AuvTracker:
                 rls.reset(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], 0.5 * (P[0][0] + P[1][1]),
                           0.5 * (P[2][2] + P[3][3]), 0.5 * (P[0][2] + P[1][3]),
                           max(kf.pos_sigma(), floor))
+        self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma())
         track = self._build(t)
         self.last_track = track
         out.append(track)
+
+    def _plan_corners(self, t_em: float) -> bool:
+        """Turn the filter onto the plan's next leg at each corner its prediction
+        reaches by ``t_em`` (:meth:`.plan.PlanMatcher.corner`); True if it did."""
+        kf = self.kf
+        pp = self.p.plan
+        turned = False
+        while (c := self.plan.corner(kf.t, kf.x[0], kf.x[1], kf.x[2], kf.x[3], t_em)):
+            kf.predict(c.t)
+            kf.turn_to(c.course_rad)
+            kf.inflate(pp.corner_pos_sigma_m ** 2, pp.corner_vel_sigma_mps ** 2)
+            self._line_restart = turned = True
+        return turned
 
     def _imm_state(self) -> str:
         """The IMM's manoeuvre state after an update: ``enter`` (the manoeuvring
@@ -938,7 +958,7 @@ class AuvTracker:
         kx = kf.x
         return AuvTrack(t, x0, y0, vx, vy, math.atan2(vy, vx), v, h, rls.covariance(),
                         rls.t0 + off, rls.t0, age, self._flags(age), self._lost,
-                        kx[0], kx[1], kx[2], kx[3], kf.pos_sigma())
+                        kx[0], kx[1], kx[2], kx[3], kf.pos_sigma(), self.plan.leg)
 
     def _track(self, t: float, last: AuvTrack) -> AuvTrack:
         """``last`` re-stamped at ``t`` with its age and flags brought up to date."""
@@ -946,7 +966,7 @@ class AuvTracker:
         return AuvTrack(t, last.x0_m, last.y0_m, last.vx_mps, last.vy_mps, last.psi_auv_rad,
                         last.v_auv_mps, last.h_auv_m, last.cov, last.t0, last.t0_utc_s, age,
                         self._flags(age), self._lost, last.kf_x_m, last.kf_y_m,
-                        last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m)
+                        last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m, self.plan.leg)
 
     def _check_lost(self, t: float | None, out: list[AuvFix | AuvTrack]) -> None:
         """Declare the track lost when silent too long or too uncertain."""
@@ -961,6 +981,7 @@ class AuvTracker:
         if age <= p.lost_after_s and 0.5 * (pxx + pyy) <= p.lost_sigma_m ** 2:
             return
         self._lost = True
+        self.plan.leg = -1  # matched again once the track is back
         kx = self.kf.x
         self._prior = (kx[0], kx[1])
         self.kf.reset()

@@ -1,0 +1,469 @@
+"""The AUV's a-priori plan: its legs and corners, where the AUV is on it, and
+whether it still flies it (paper V: the AUV describes a sequence of straight
+lines "according to an a priori mission plan, or defined on-the-fly in
+adaptive sampling missions").
+
+Geometry (:class:`Plan`).  The plan's points, local NED (x north, y east,
+metres), are joined by legs; the path coordinate ``s`` is the arc length along
+the legs from the first point (m); corner k joins leg k to leg k + 1 and turns
+the course by ``turn_rad(k)`` (+ to starboard, in (−π, π]).  Before the first
+point and after the last the path goes on straight along the first and last
+legs.
+
+Matching (:class:`PlanMatcher`), fed with the tracker's filtered state (the
+AUV's position, velocity and position σ, at the filter's time) after every
+accepted update:
+
+* ``none``: no plan;
+* ``search``: a plan, the AUV not on it.  A leg fits when the position is
+  within ``cross_gate_m`` + 2σ of it and between its ends, and the AUV's
+  course (moving faster than ``min_speed_mps``) is within ``course_gate_deg``
+  of the leg's; one leg fitting for ``join_after_s`` puts the AUV on it
+  (event ``AUV on its plan``);
+* ``on`` leg k: the AUV moves on to leg k + 1 (k + 2 past a leg shorter than
+  the corner zone) once it is within ``corner_zone_m`` of the corner and fits
+  the next leg.  Anywhere else it must fit leg k (in the zones about its
+  corners any course passes: the AUV turns there).  Not fitting for
+  ``leave_after_s`` — off its leg, on another course (an early turn, a leg
+  the plan does not have), or past the corner's zone without turning (a late
+  turn, a skipped corner) — it has left the plan: event ``AUV left its plan``
+  with the reason, and the matcher searches again; re-joining any leg later
+  (the fit above) puts it back on.
+
+Turns anticipated (:meth:`PlanMatcher.corner`): while the AUV is on leg k,
+the tracker asks, before it predicts its filter forward, whether the filter's
+straight-line prediction reaches corner k within the interval; if so it
+predicts to that instant, turns the filter's velocity onto leg k + 1's course
+(its speed kept) and opens up its covariance by ``corner_vel_sigma_mps`` and
+``corner_pos_sigma_m``, so that the fixes after the corner confirm a turn
+already made instead of discovering it several seconds late.  If the AUV did
+not turn, those fixes pull the filter back (the covariance was opened for
+that), and the matcher, finding the AUV off leg k + 1, declares it off the
+plan.
+
+Pure and deterministic: no I/O, no clocks; times are any one clock (s).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from zarco_core.config import spec
+
+#: the most points a plan may have
+MAX_POINTS = 1000
+#: two consecutive points closer than this (m) are one point: refused
+MIN_LEG_M = 1.0
+#: a plan point further than this from the origin (m) is refused
+MAX_RANGE_M = 50_000.0
+
+
+@dataclass(slots=True)
+class PlanParams:
+    """``[tracker.plan]``: matching the AUV to its a-priori plan."""
+
+    cross_gate_m: float = spec(5.0, "m", "the AUV is on a leg while the filter's position is "
+                               "within this (plus 2σ) of it", min=0.5, max=1000.0)
+    course_gate_deg: float = spec(30.0, "deg", "… and its course within this of the leg's "
+                                  "(outside the corner zones)", min=1.0, max=90.0)
+    corner_zone_m: float = spec(12.0, "m", "within this of a corner the AUV may be on any "
+                                "course (it turns there): about its turning radius plus "
+                                "the track's error", min=0.0, max=1000.0)
+    min_speed_mps: float = spec(0.2, "m/s", "below this speed the AUV's course is not "
+                                "judged (hovering)", min=0.0, max=5.0)
+    join_after_s: float = spec(6.0, "s", "a leg must fit this long before the AUV is taken "
+                               "to be on it", min=0.0, max=600.0)
+    leave_after_s: float = spec(4.0, "s", "the AUV must misfit its leg this long before it "
+                                "is taken to have left the plan", min=0.0, max=600.0)
+    corner_vel_sigma_mps: float = spec(0.3, "m/s", "velocity 1σ added to the filter when it "
+                                       "is turned onto the next leg at a corner",
+                                       min=0.0, max=10.0)
+    corner_pos_sigma_m: float = spec(1.0, "m", "position 1σ added to the filter at a corner",
+                                     min=0.0, max=100.0)
+    anticipate: bool = spec(True, "", "turn the tracker's filter onto the next leg when its "
+                            "prediction reaches a corner (off: the plan only tells which leg "
+                            "the AUV is on)")
+
+
+@dataclass(frozen=True, slots=True)
+class PlanLeg:
+    """Leg ``index`` of a plan, from (n0, e0) to (n1, e1) (NED, m); ``s0_m`` the
+    path coordinate of its start, (ux, uy) its unit direction."""
+
+    index: int
+    n0: float
+    e0: float
+    n1: float
+    e1: float
+    s0_m: float
+    length_m: float
+    ux: float
+    uy: float
+
+    @property
+    def course_rad(self) -> float:
+        """The leg's course, clockwise from north (rad)."""
+        return math.atan2(self.uy, self.ux)
+
+    def project(self, x: float, y: float) -> tuple[float, float]:
+        """(along from its start, cross-track: > 0 to starboard of its course), m."""
+        dx, dy = x - self.n0, y - self.e0
+        return dx * self.ux + dy * self.uy, -dx * self.uy + dy * self.ux
+
+    def point(self, along: float, cross: float = 0.0) -> tuple[float, float]:
+        """The point ``along`` metres from its start (on its line, extended),
+        ``cross`` metres to starboard."""
+        return (self.n0 + along * self.ux - cross * self.uy,
+                self.e0 + along * self.uy + cross * self.ux)
+
+
+def check_points(points: list[tuple[float, float]]) -> str:
+    """Why these NED points (m) are not a plan ("" when they are): 2 to
+    ``MAX_POINTS`` finite points, within ``MAX_RANGE_M`` of the origin,
+    consecutive ones at least ``MIN_LEG_M`` apart."""
+    if len(points) > MAX_POINTS:
+        return f"has {len(points)} points, at most {MAX_POINTS}"
+    if len(points) == 1:
+        return "a plan needs at least 2 points (or none)"
+    for i, (n, e) in enumerate(points):
+        if not (math.isfinite(n) and math.isfinite(e)):
+            return f"point {i} is not finite"
+        if math.hypot(n, e) > MAX_RANGE_M:
+            return f"point {i} is {math.hypot(n, e) / 1000.0:.0f} km from the origin"
+        if i and math.hypot(n - points[i - 1][0], e - points[i - 1][1]) < MIN_LEG_M:
+            return f"points {i - 1} and {i} are less than {MIN_LEG_M:g} m apart"
+    return ""
+
+
+class Plan:
+    """The legs of a plan given by its points (NED, m); see the module docstring.
+    Raises ValueError (:func:`check_points`) for points that are not a plan."""
+
+    __slots__ = ("legs", "length_m", "points")
+
+    def __init__(self, points: list[tuple[float, float]] | tuple[tuple[float, float], ...]
+                 ) -> None:
+        pts = [(float(n), float(e)) for n, e in points]
+        why = check_points(pts)
+        if why or len(pts) < 2:
+            raise ValueError(why or "a plan needs at least 2 points")
+        self.points = tuple(pts)
+        legs: list[PlanLeg] = []
+        s = 0.0
+        for i in range(1, len(pts)):
+            (a, b), (c, d) = pts[i - 1], pts[i]
+            length = math.hypot(c - a, d - b)
+            legs.append(PlanLeg(i - 1, a, b, c, d, s, length, (c - a) / length,
+                                (d - b) / length))
+            s += length
+        self.legs = tuple(legs)
+        self.length_m = s
+
+    def turn_rad(self, k: int) -> float:
+        """The course change at the end of leg ``k`` (rad, + to starboard); 0
+        after the last leg."""
+        if not 0 <= k < len(self.legs) - 1:
+            return 0.0
+        return math.remainder(self.legs[k + 1].course_rad - self.legs[k].course_rad, math.tau)
+
+    def leg_at(self, s: float) -> PlanLeg:
+        """The leg the path coordinate ``s`` (m) falls on (the first or last
+        beyond the ends)."""
+        legs = self.legs
+        lo, hi = 0, len(legs) - 1
+        while lo < hi:  # the last leg whose start is at or before s
+            mid = (lo + hi + 1) // 2
+            if legs[mid].s0_m <= s:
+                lo = mid
+            else:
+                hi = mid - 1
+        return legs[lo]
+
+    def point_at(self, s: float, cross: float = 0.0) -> tuple[float, float, float]:
+        """(x, y, course) at path coordinate ``s`` (m), ``cross`` metres to
+        starboard of the leg there."""
+        leg = self.leg_at(s)
+        x, y = leg.point(s - leg.s0_m, cross)
+        return x, y, leg.course_rad
+
+    def nearest(self, x: float, y: float, s_lo: float, s_hi: float) -> tuple[float, float]:
+        """(s, cross): the point of the path between path coordinates ``s_lo`` and
+        ``s_hi`` (m) nearest (x, y), and the signed distance to it (> 0 to
+        starboard of the leg it lies on)."""
+        best = (math.inf, s_lo, 0.0)
+        for leg in self.legs:
+            a0 = max(s_lo - leg.s0_m, -math.inf if leg.index == 0 else 0.0)
+            a1 = min(s_hi - leg.s0_m,
+                     math.inf if leg.index == len(self.legs) - 1 else leg.length_m)
+            if a0 > a1:
+                continue
+            along, cross = leg.project(x, y)
+            a = min(max(along, a0), a1)
+            px, py = leg.point(a)
+            d = math.hypot(x - px, y - py)
+            if d < best[0]:
+                sign = 1.0 if cross >= 0.0 else -1.0
+                best = (d, leg.s0_m + a, sign * d)
+        return best[1], best[2]
+
+
+@dataclass(frozen=True, slots=True)
+class CornerTurn:
+    """A corner the filter's prediction reaches: at time ``t`` (s), the end of leg
+    ``leg``, where the course becomes ``course_rad`` (the next leg's)."""
+
+    t: float
+    leg: int
+    course_rad: float
+
+
+@dataclass(slots=True)
+class _Fit:
+    """How the AUV's state fits one leg."""
+
+    along: float
+    cross: float
+    pos_ok: bool
+    course_ok: bool
+
+
+@dataclass(slots=True)
+class PlanMatcher:
+    """Which leg of its plan the AUV is on, and when it leaves it (module
+    docstring).  :attr:`events` collects what an operator should read
+    (drained by whoever publishes them)."""
+
+    params: PlanParams
+    plan: Plan | None = None
+    #: the leg the AUV is on, −1 when off the plan (or without one)
+    leg: int = -1
+    events: list[str] = field(default_factory=list)
+    #: how many times the AUV left the plan, and joined it
+    left: int = 0
+    joined: int = 0
+    _cand: int = -1
+    _cand_since: float = math.nan
+    _bad_since: float = math.nan
+    _bad_reason: str = ""
+    _corner_done: int = -1
+    _last_t: float = -math.inf
+
+    @property
+    def state(self) -> str:
+        """``none`` (no plan), ``search`` or ``on``."""
+        if self.plan is None:
+            return "none"
+        return "on" if self.leg >= 0 else "search"
+
+    def set_plan(self, points: tuple[tuple[float, float], ...] | list[tuple[float, float]],
+                 source: str = "") -> None:
+        """Take a new plan (NED points, m; empty clears it) and match from scratch.
+        Points that are not a plan clear it, with an event saying why."""
+        had = self.plan is not None
+        self.plan = None
+        self.leg = -1
+        self._reset_search()
+        self._bad_since = math.nan
+        self._corner_done = -1
+        if not points:
+            if had:
+                self.events.append("AUV plan cleared; tracking without it")
+            return
+        try:
+            self.plan = Plan(list(points))
+        except ValueError as exc:
+            self.events.append(f"AUV plan refused ({exc}); tracking without it")
+            return
+        n = len(self.plan.legs)
+        self.events.append(f"AUV plan of {n} leg{'s' if n != 1 else ''} "
+                           f"({self.plan.length_m:.0f} m)" + (f" from {source}" if source else "")
+                           + "; waiting for the AUV on it")
+
+    def _reset_search(self) -> None:
+        self._cand = -1
+        self._cand_since = math.nan
+
+    # ------------------------------------------------------------ matching
+
+    def _fit(self, leg: PlanLeg, x: float, y: float, vx: float, vy: float,
+             sigma: float) -> _Fit:
+        p = self.params
+        along, cross = leg.project(x, y)
+        gate = p.cross_gate_m + 2.0 * sigma
+        pos_ok = abs(cross) <= gate and -gate <= along <= leg.length_m + gate
+        v = math.hypot(vx, vy)
+        course_ok = v < p.min_speed_mps or abs(math.remainder(
+            math.atan2(vy, vx) - leg.course_rad, math.tau)) <= math.radians(p.course_gate_deg)
+        return _Fit(along, cross, pos_ok, course_ok)
+
+    def update(self, t: float, x: float, y: float, vx: float, vy: float,
+               sigma: float = 0.0) -> None:
+        """Match the AUV's filtered state at time ``t`` (s): position (m),
+        velocity (m/s), position σ (m)."""
+        plan = self.plan
+        if plan is None or not all(math.isfinite(v) for v in (t, x, y, vx, vy)):
+            return
+        if not math.isfinite(sigma):
+            sigma = 0.0
+        self._last_t = t
+        if self.leg < 0:
+            self._search(t, x, y, vx, vy, sigma)
+        else:
+            self._follow_on(t, x, y, vx, vy, sigma)
+
+    def _search(self, t: float, x: float, y: float, vx: float, vy: float,
+                sigma: float) -> None:
+        plan = self.plan
+        assert plan is not None
+        if math.hypot(vx, vy) < self.params.min_speed_mps:
+            self._reset_search()  # hovering: its course says nothing yet
+            return
+        best, best_c = -1, math.inf
+        for leg in plan.legs:
+            f = self._fit(leg, x, y, vx, vy, sigma)
+            if f.pos_ok and f.course_ok and 0.0 <= f.along <= leg.length_m \
+                    and abs(f.cross) < best_c:
+                best, best_c = leg.index, abs(f.cross)
+        if best < 0:
+            self._reset_search()
+            return
+        if best != self._cand:
+            self._cand, self._cand_since = best, t
+        if t - self._cand_since < self.params.join_after_s:
+            return
+        self.leg = best
+        self._reset_search()
+        self._bad_since = math.nan
+        self._corner_done = best - 1
+        self.joined += 1
+        n = len(plan.legs)
+        self.events.append(("AUV back on its plan" if self.left else "AUV on its plan")
+                           + f", leg {best + 1} of {n}")
+
+    def _follow_on(self, t: float, x: float, y: float, vx: float, vy: float,
+                   sigma: float) -> None:
+        plan = self.plan
+        assert plan is not None
+        p = self.params
+        legs = plan.legs
+        zone = p.corner_zone_m
+        # on to the next leg(s) once near the corner and fitting them
+        while self.leg + 1 < len(legs):
+            k = self.leg
+            cur = self._fit(legs[k], x, y, vx, vy, sigma)
+            if cur.along < legs[k].length_m - zone:
+                break
+            nxt = self._fit(legs[k + 1], x, y, vx, vy, sigma)
+            if nxt.pos_ok and nxt.course_ok:
+                self.leg = k + 1
+                continue
+            # past a leg shorter than the zone (a lawnmower's crossing): the one after
+            if k + 2 < len(legs) and legs[k + 1].length_m <= 2.0 * zone:
+                nn = self._fit(legs[k + 2], x, y, vx, vy, sigma)
+                if nn.pos_ok and nn.course_ok:
+                    self.leg = k + 2
+                    continue
+            break
+        k = self.leg
+        leg = legs[k]
+        f = self._fit(leg, x, y, vx, vy, sigma)
+        gate = p.cross_gate_m + 2.0 * sigma
+        near_end = k + 1 < len(legs) and f.along >= leg.length_m - zone
+        near_start = k > 0 and f.along <= zone
+        reason = ""
+        if abs(f.cross) > gate:
+            reason = f"{abs(f.cross):.0f} m {'starboard' if f.cross > 0 else 'port'} of leg {k + 1}"
+        elif k + 1 < len(legs) and f.along > leg.length_m + zone:
+            reason = f"past the end of leg {k + 1} without turning"
+        elif not f.course_ok and not (near_end or near_start):
+            course = math.degrees(math.atan2(vy, vx)) % 360.0
+            reason = (f"course {course:.0f}° where leg {k + 1} runs "
+                      f"{math.degrees(leg.course_rad) % 360.0:.0f}°")
+        if not reason:
+            self._bad_since = math.nan
+            return
+        if not math.isfinite(self._bad_since):
+            self._bad_since, self._bad_reason = t, reason
+        if t - self._bad_since < p.leave_after_s:
+            return
+        self.leg = -1
+        self.left += 1
+        self._bad_since = math.nan
+        self._reset_search()
+        self.events.append(f"AUV left its plan ({reason}); tracking without it")
+
+    # -------------------------------------------------------- anticipation
+
+    def corner(self, t_from: float, x: float, y: float, vx: float, vy: float,
+               t_to: float) -> CornerTurn | None:
+        """The corner the straight-line prediction from (x, y) at ``t_from`` with
+        (vx, vy) reaches by ``t_to`` (s), while the AUV is on the plan, each
+        corner once; None if none.  The leg then advances to the next, so a
+        prediction through several corners asks again from the turn."""
+        plan = self.plan
+        k = self.leg
+        if (plan is None or k < 0 or k + 1 >= len(plan.legs) or self._corner_done >= k
+                or not self.params.anticipate):
+            return None
+        leg = plan.legs[k]
+        along, _ = leg.project(x, y)
+        rate = vx * leg.ux + vy * leg.uy
+        if rate < self.params.min_speed_mps:
+            return None
+        t_c = t_from + max(0.0, leg.length_m - along) / rate
+        if t_c > t_to:
+            return None
+        self._corner_done = k
+        self.leg = k + 1
+        self._bad_since = math.nan
+        return CornerTurn(t_c, k, plan.legs[k + 1].course_rad)
+
+
+def geodetic_plan(raw: object, to_ned: Callable[[float, float], tuple[float, float]]
+                  ) -> tuple[tuple[float, float], ...]:
+    """An operator's plan ``[[lat_deg, lon_deg], ...]`` (a command's
+    ``auv_plan``) as NED points (m) through ``to_ned``; an empty list is no
+    plan.  Raises ValueError naming the point and what is wrong with it."""
+    if not isinstance(raw, (list, tuple)):
+        raise ValueError(f"must be a list of [lat_deg, lon_deg], got {type(raw).__name__}")
+    if len(raw) > MAX_POINTS:
+        raise ValueError(f"has {len(raw)} points, at most {MAX_POINTS}")
+    pts: list[tuple[float, float]] = []
+    for i, p in enumerate(raw):
+        if not (isinstance(p, (list, tuple)) and len(p) == 2
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in p)):
+            raise ValueError(f"point {i} must be [lat_deg, lon_deg], got {p!r:.60}")
+        lat, lon = float(p[0]), float(p[1])
+        if not (math.isfinite(lat) and math.isfinite(lon) and -90.0 <= lat <= 90.0
+                and -180.0 <= lon <= 180.0):
+            raise ValueError(f"point {i} is not a latitude, longitude: {p!r:.60}")
+        pts.append(to_ned(lat, lon))
+    why = check_points(pts)
+    if why:
+        raise ValueError(why)
+    return tuple(pts)
+
+
+def turn_velocity(x: list[float], P: list[list[float]], course_rad: float) -> None:
+    """Turn the velocity of a filter state in place onto ``course_rad`` (rad,
+    clockwise from north), keeping its speed: x = (x, y, vx, vy, …) and its
+    covariance ``P`` (rows and columns 2, 3 rotated with the velocity, so its
+    uncertainty keeps its shape relative to the course).  A turn-rate state
+    (index 4) is zeroed: the AUV flies the next leg straight."""
+    vx, vy = x[2], x[3]
+    v = math.hypot(vx, vy)
+    d = course_rad - math.atan2(vy, vx) if v > 0.0 else 0.0
+    c, s = math.cos(d), math.sin(d)
+    x[2], x[3] = v * math.cos(course_rad), v * math.sin(course_rad)
+    if len(x) > 4:
+        x[4] = 0.0
+    n = len(P)
+    for row in P:  # P Rᵀ: columns 2, 3
+        a, b = row[2], row[3]
+        row[2], row[3] = c * a - s * b, s * a + c * b
+    r2, r3 = P[2], P[3]
+    for j in range(n):  # R P: rows 2, 3
+        a, b = r2[j], r3[j]
+        r2[j], r3[j] = c * a - s * b, s * a + c * b
