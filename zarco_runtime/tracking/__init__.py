@@ -16,6 +16,5 @@ Modules, in data-flow order:
 * :mod:`.rls` – recursive least squares with forgetting on the line model;
 * :mod:`.plan` – the AUV's a-priori plan: legs, corners, which leg it is on,
   leaving and re-joining it, the corners its prediction reaches;
-* :mod:`.tracker` – the glue, track aging and lost declaration;
-* :mod:`.follow` – the follow-law geometry of the paper, section VI.
+* :mod:`.tracker` – the glue, track aging and lost declaration.
 """
