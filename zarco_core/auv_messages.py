@@ -124,8 +124,12 @@ class AuvTrack:
     deviations.  ``fix_age_s``: runtime seconds since the emission time of the
     last accepted fix.  ``flags``: :class:`TrackFlags` bits; ``lost`` mirrors
     the LOST bit.  ``plan_leg``: the leg of the AUV's plan (:class:`AuvPlan`,
-    0 = from its first point to its second) the AUV is on; −1 without a plan
-    or off it.
+    0 = from its first point to its second) the AUV is on, −1 without a plan
+    or off it; then ``plan_s_m``: its progress along the plan at ``t0`` (m of
+    path from the plan's first point), ``plan_speed_mps`` its speed along the
+    plan, ``plan_cross_m`` its offset from the plan (m, + to starboard),
+    ``plan_turn_radius_m`` the radius it rounds the plan's corners with (m);
+    NaN off the plan.
     """
 
     t: float
@@ -148,6 +152,10 @@ class AuvTrack:
     kf_vy_mps: float
     kf_pos_sigma_m: float
     plan_leg: int = -1
+    plan_s_m: float = math.nan
+    plan_speed_mps: float = math.nan
+    plan_cross_m: float = math.nan
+    plan_turn_radius_m: float = math.nan
 
 
 @dataclass(slots=True)

@@ -200,7 +200,9 @@ class ControlTask:
                                         fs.leg.course_rad if fs.leg else nav.psi_rad,
                                         fs.speed_ref_mps))
         if fs.leg is None:
-            if self._psi_hold is None:
+            if math.isfinite(fs.heading_rad):
+                self._psi_hold = fs.heading_rad
+            elif self._psi_hold is None:
                 self._psi_hold = nav.psi_rad
             dem = self.ctl.hold(nav, self._psi_hold)
         else:

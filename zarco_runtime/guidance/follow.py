@@ -96,7 +96,9 @@ class FollowState:
     starboard); ``along_error_m``: how far the AUV is ahead of the ASV along
     its course (m); ``target``: which estimate was followed (``line``, ``kf``,
     ``plan``); ``k_s`` (N/m), ``k_i`` (N/(m s)): the surge gains on
-    ``along_error_m`` of the law in use.
+    ``along_error_m`` of the law in use; ``heading_rad``: without a leg, the
+    heading to keep (NaN: the present one) — above an AUV waiting on its plan,
+    the course it will leave on.
     """
 
     mode: str  # "follow", "hold" (track lost), "wait" (no track yet)
@@ -108,6 +110,7 @@ class FollowState:
     target: str = ""
     k_s: float = 0.0
     k_i: float = 0.0
+    heading_rad: float = math.nan
 
 
 class FollowGuidance:
@@ -160,7 +163,7 @@ class FollowGuidance:
             self.target = None
             return self._hold(x, y, reason or "no AUV track yet")
         tg = target_now(track, t, cfg.line_gate_m, math.radians(cfg.line_course_gate_deg))
-        on_plan = self._on_plan(track, tg, t)
+        on_plan = self._on_plan(track, t)
         path: StraightPath | PlanPath
         if on_plan is not None:
             tg, path = on_plan
@@ -176,7 +179,12 @@ class FollowGuidance:
         cov = track.cov
         sv = math.sqrt(max(0.5 * (cov[10] + cov[15]), 0.0)) if len(cov) == 16 else 0.0
         v_line = math.hypot(track.vx_mps, track.vy_mps)
-        if not self.moving:
+        if on_plan is not None:
+            # on its plan the tracker's speed along it says it (a still AUV waiting
+            # at its plan's start is seen moving off along its first leg within
+            # a fix or two)
+            self.moving = v >= (0.5 if self.moving else 1.0) * cfg.still_speed_mps
+        elif not self.moving:
             self.moving = v_line >= max(cfg.still_speed_mps, MOVING_SIGMAS * sv)
         elif v_line + 2.0 * sv < cfg.still_speed_mps:
             self.moving = False
@@ -191,7 +199,8 @@ class FollowGuidance:
                        and (self._was_above or bool(track.flags & TrackFlags.LINE_VALID)))
             if not settled:
                 return self._hold(x, y, "AUV (nearly) still, track settling")
-            return self._above(tg, t, x, y)
+            return self._above(tg, t, x, y, path.course_at(0.0) if on_plan is not None
+                               else math.nan)
         self.hold = None
         self.mode = "follow"
         if cfg.law == "paper":
@@ -211,9 +220,16 @@ class FollowGuidance:
         ax, ay = path.point(ahead)
         psi = self._steer(math.atan2(ay - y, ax - x), t)
         self._new_leg(psi)
-        theta = math.remainder(psi - math.atan2(ay - tg.y, ax - tg.x), math.tau)
-        v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
-        v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
+        if isinstance(path, PlanPath):
+            # be at the aim point when the AUV is: its straight distance from the
+            # boat over the time the AUV takes along its path to get there (a
+            # chord across a turn is shorter than the AUV's arc)
+            v_ref = v * math.hypot(ax - x, ay - y) / ahead
+            v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v_ref))
+        else:
+            theta = math.remainder(psi - math.atan2(ay - tg.y, ax - tg.x), math.tau)
+            v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
+            v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
         cp, sp = math.cos(psi), math.sin(psi)
         # from the ASV towards the aim point (along the rate-limited course), and on
         reach = math.hypot(ax - x, ay - y) + LEG_PAST_AIM_M
@@ -275,8 +291,7 @@ class FollowGuidance:
             except ValueError:  # the tracker refused it too and says so
                 self.plan = None
 
-    def _on_plan(self, track: AuvTrack, kf: Target, t: float
-                 ) -> tuple[Target, PlanPath] | None:
+    def _on_plan(self, track: AuvTrack, t: float) -> tuple[Target, PlanPath] | None:
         """The target carried along the plan, its position low-passed over
         ``target_tau_s`` along the path (path coordinate and offset); None
         without a plan, with the AUV off it, or a track older than the plan."""
@@ -284,27 +299,28 @@ class FollowGuidance:
         if plan is None or msg is None or track.t < msg.t or track.plan_leg < 0:
             self._sm_plan = None
             return None
-        got = plan_target(track, plan, t, math.hypot(kf.vx, kf.vy))
+        got = plan_target(track, plan, t)
         if got is None:
             self._sm_plan = None
             return None
         tg, path = got
         v = math.hypot(tg.vx, tg.vy)
+        r = path.radius
         sm = self._sm_plan
         if sm is None and self._sm is not None and t - self._sm[0] <= 1.0:
             # on the plan from plan-free following: start from where the boat was aiming
             s0, c0 = plan.nearest(self._sm[1], self._sm[2], path.s - TARGET_RESET_M,
-                                  path.s + TARGET_RESET_M)
+                                  path.s + TARGET_RESET_M, r)
             sm = (self._sm[0], s0, c0)
         if sm is not None and t > sm[0]:
-            s_pred = sm[1] + v * (t - sm[0])
+            s_pred = plan.advance(sm[1], v * (t - sm[0]), r)
             if abs(path.s - s_pred) <= TARGET_RESET_M:
                 k = min(1.0, (t - sm[0]) / self.cfg.target_tau_s)
                 s = s_pred + k * (path.s - s_pred)
                 cross = sm[2] + k * (path.cross - sm[2])
-                x, y, course = plan.point_at(s, cross)
+                x, y, course = plan.point_at(s, cross, r)
                 tg = Target(x, y, v * math.cos(course), v * math.sin(course), "plan")
-                path = PlanPath(plan, s, cross)
+                path = PlanPath(plan, s, cross, r)
         self._sm_plan = (t, path.s, path.cross)
         self._sm = (t, tg.x, tg.y)  # plan-free following continues from here
         return tg, path
@@ -327,9 +343,11 @@ class FollowGuidance:
         self._sm = (t, x, y)
         return Target(x, y, tg.vx, tg.vy, tg.source)
 
-    def _above(self, tg: Target, t: float, x: float, y: float) -> FollowState:
+    def _above(self, tg: Target, t: float, x: float, y: float,
+               course: float = math.nan) -> FollowState:
         """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
-        position, else go there (faster the further it is)."""
+        position (facing ``course``, rad, when it is known: on its plan, the
+        AUV will leave along it), else go there (faster the further it is)."""
         cfg = self.cfg
         self._was_above = True
         self.hold = None
@@ -337,7 +355,8 @@ class FollowGuidance:
         dist = math.hypot(tg.x - x, tg.y - y)
         if dist <= cfg.hold_radius_m:
             self._psi_ref = None
-            return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source)
+            return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
+                               heading_rad=course)
         psi = self._steer(math.atan2(tg.y - y, tg.x - x), t)
         if self._psi_leg is None or abs(math.remainder(psi - self._psi_leg, math.tau)) > \
                 math.radians(cfg.new_line_deg):

@@ -10,10 +10,10 @@ forward from the track's time origin to now,
   (position and course), otherwise with the filter's own velocity
   (:func:`target_now`);
 * with the AUV on its a-priori plan (the track's ``plan_leg``), along the
-  plan: the filter's position is projected on the leg the AUV is on (path
-  coordinate s, offset ``cross`` to starboard, kept), and carried forward
-  along the legs, round their corners, at the AUV's speed
-  (:func:`plan_target`).
+  plan: the tracker's estimate of its progress along the plan (path
+  coordinate s, speed along the path, offset to starboard, the radius it
+  rounds the corners with) carried forward along the legs, round their
+  corners (:func:`plan_target`).
 
 The path is where the AUV goes from there: a :class:`StraightPath` along its
 course, or a :class:`PlanPath` along its plan (offset as the AUV is).  The
@@ -108,52 +108,62 @@ class StraightPath:
 
 
 class PlanPath:
-    """The AUV's path on its plan: the plan's legs from the target's path
-    coordinate ``s`` (m), offset ``cross`` metres to starboard as the AUV is."""
+    """The AUV's path on its plan: the plan's legs, rounded with the AUV's
+    turning radius ``radius`` (m), from the target's path coordinate ``s``
+    (m), offset ``cross`` metres to starboard as the AUV is."""
 
-    __slots__ = ("cross", "plan", "s")
+    __slots__ = ("cross", "plan", "radius", "s")
 
-    def __init__(self, plan: Plan, s: float, cross: float) -> None:
+    def __init__(self, plan: Plan, s: float, cross: float, radius: float) -> None:
         self.plan = plan
         self.s = s
         self.cross = cross
+        self.radius = radius
+
+    def _at(self, a: float) -> float:
+        return self.plan.advance(self.s, a, self.radius)
 
     def locate(self, x: float, y: float) -> tuple[float, float]:
-        """(a, c) as :meth:`StraightPath.locate`, along the legs: the nearest point
+        """(a, c) as :meth:`StraightPath.locate`, along the path: the nearest point
         of the path within ``LOCATE_WINDOW_M`` of the target (a U-turn's other
-        leg, a few metres away, is not where the boat is following)."""
-        sb, c = self.plan.nearest(x, y, self.s - LOCATE_WINDOW_M, self.s + LOCATE_WINDOW_M)
-        return sb - self.s, c - self.cross
+        leg, a few metres away, is not where the boat is following).  Inside a
+        corner that point is on the next leg, ahead of the target, while the
+        boat is level with it: ``a`` is at most the boat's lead along the
+        target's own course."""
+        sb, c = self.plan.nearest(x, y, self._at(-LOCATE_WINDOW_M), self._at(LOCATE_WINDOW_M),
+                                  self.radius)
+        tx, ty, course = self.plan.point_at(self.s, self.cross, self.radius)
+        lead = (x - tx) * math.cos(course) + (y - ty) * math.sin(course)
+        return min(sb - self.s, lead), c - self.cross
 
     def point(self, a: float) -> tuple[float, float]:
-        x, y, _ = self.plan.point_at(self.s + a, self.cross)
+        x, y, _ = self.plan.point_at(self._at(a), self.cross, self.radius)
         return x, y
 
     def course_at(self, a: float) -> float:
-        return self.plan.leg_at(self.s + a).course_rad
+        return self.plan.point_at(self._at(a), 0.0, self.radius)[2]
 
     def line(self, a: float) -> tuple[float, float, float, int]:
         """The (offset) plan leg ``a`` metres from the target: the point of it
         level with the target, its course, its index."""
-        leg = self.plan.leg_at(self.s + a)
+        leg = self.plan.leg_at(self._at(a))
         tx, ty = self.point(0.0)
         x, y = leg.point(leg.project(tx, ty)[0], self.cross)
         return x, y, leg.course_rad, leg.index
 
 
-def plan_target(track: AuvTrack, plan: Plan, t: float, speed_mps: float
-                ) -> tuple[Target, PlanPath] | None:
-    """The AUV at runtime time ``t`` carried along its plan at ``speed_mps``
-    from the filter's position on the track's ``plan_leg``, and its path; None
-    when the track does not put it on a leg of ``plan``."""
-    k = track.plan_leg
-    if not 0 <= k < len(plan.legs) or not (math.isfinite(track.kf_x_m)
-                                            and math.isfinite(track.kf_y_m)
-                                            and math.isfinite(speed_mps)):
+def plan_target(track: AuvTrack, plan: Plan, t: float) -> tuple[Target, PlanPath] | None:
+    """The AUV at runtime time ``t`` on its plan: the tracker's progress along
+    it (``plan_s_m`` at the track's time origin, ``plan_speed_mps``) carried
+    forward, offset ``plan_cross_m`` as the AUV is; and its path.  None when
+    the track does not put the AUV on a leg of ``plan`` (or going backwards)."""
+    s0, u, cross = track.plan_s_m, track.plan_speed_mps, track.plan_cross_m
+    radius = track.plan_turn_radius_m
+    if not (0 <= track.plan_leg < len(plan.legs) and math.isfinite(s0) and math.isfinite(u)
+            and math.isfinite(cross) and u >= 0.0):
         return None
-    leg = plan.legs[k]
-    along, cross = leg.project(track.kf_x_m, track.kf_y_m)
-    s = leg.s0_m + along + speed_mps * max(t - track.t0, 0.0)
-    x, y, course = plan.point_at(s, cross)
-    tg = Target(x, y, speed_mps * math.cos(course), speed_mps * math.sin(course), "plan")
-    return tg, PlanPath(plan, s, cross)
+    radius = radius if math.isfinite(radius) and radius > 0.0 else 0.0
+    s = plan.advance(s0, u * max(t - track.t0, 0.0), radius)
+    x, y, course = plan.point_at(s, cross, radius)
+    tg = Target(x, y, u * math.cos(course), u * math.sin(course), "plan")
+    return tg, PlanPath(plan, s, cross, radius)

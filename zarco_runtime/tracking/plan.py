@@ -47,18 +47,21 @@ Pure and deterministic: no I/O, no clocks; times are any one clock (s).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from zarco_core.auv_messages import AuvFix
 from zarco_core.config import spec
+from zarco_runtime.tracking.plan_geometry import (
+    MAX_POINTS,
+    Plan,
+    PlanLeg,
+    check_points,
+    geodetic_plan,
+)
+from zarco_runtime.tracking.plan_progress import AlongPlan
 
-#: the most points a plan may have
-MAX_POINTS = 1000
-#: two consecutive points closer than this (m) are one point: refused
-MIN_LEG_M = 1.0
-#: a plan point further than this from the origin (m) is refused
-MAX_RANGE_M = 50_000.0
-
+__all__ = ["MAX_POINTS", "AlongPlan", "CornerTurn", "Plan", "PlanLeg", "PlanMatcher",
+           "PlanParams", "check_points", "geodetic_plan", "turn_velocity"]
 
 @dataclass(slots=True)
 class PlanParams:
@@ -85,128 +88,16 @@ class PlanParams:
     anticipate: bool = spec(True, "", "turn the tracker's filter onto the next leg when its "
                             "prediction reaches a corner (off: the plan only tells which leg "
                             "the AUV is on)")
-
-
-@dataclass(frozen=True, slots=True)
-class PlanLeg:
-    """Leg ``index`` of a plan, from (n0, e0) to (n1, e1) (NED, m); ``s0_m`` the
-    path coordinate of its start, (ux, uy) its unit direction."""
-
-    index: int
-    n0: float
-    e0: float
-    n1: float
-    e1: float
-    s0_m: float
-    length_m: float
-    ux: float
-    uy: float
-
-    @property
-    def course_rad(self) -> float:
-        """The leg's course, clockwise from north (rad)."""
-        return math.atan2(self.uy, self.ux)
-
-    def project(self, x: float, y: float) -> tuple[float, float]:
-        """(along from its start, cross-track: > 0 to starboard of its course), m."""
-        dx, dy = x - self.n0, y - self.e0
-        return dx * self.ux + dy * self.uy, -dx * self.uy + dy * self.ux
-
-    def point(self, along: float, cross: float = 0.0) -> tuple[float, float]:
-        """The point ``along`` metres from its start (on its line, extended),
-        ``cross`` metres to starboard."""
-        return (self.n0 + along * self.ux - cross * self.uy,
-                self.e0 + along * self.uy + cross * self.ux)
-
-
-def check_points(points: list[tuple[float, float]]) -> str:
-    """Why these NED points (m) are not a plan ("" when they are): 2 to
-    ``MAX_POINTS`` finite points, within ``MAX_RANGE_M`` of the origin,
-    consecutive ones at least ``MIN_LEG_M`` apart."""
-    if len(points) > MAX_POINTS:
-        return f"has {len(points)} points, at most {MAX_POINTS}"
-    if len(points) == 1:
-        return "a plan needs at least 2 points (or none)"
-    for i, (n, e) in enumerate(points):
-        if not (math.isfinite(n) and math.isfinite(e)):
-            return f"point {i} is not finite"
-        if math.hypot(n, e) > MAX_RANGE_M:
-            return f"point {i} is {math.hypot(n, e) / 1000.0:.0f} km from the origin"
-        if i and math.hypot(n - points[i - 1][0], e - points[i - 1][1]) < MIN_LEG_M:
-            return f"points {i - 1} and {i} are less than {MIN_LEG_M:g} m apart"
-    return ""
-
-
-class Plan:
-    """The legs of a plan given by its points (NED, m); see the module docstring.
-    Raises ValueError (:func:`check_points`) for points that are not a plan."""
-
-    __slots__ = ("legs", "length_m", "points")
-
-    def __init__(self, points: list[tuple[float, float]] | tuple[tuple[float, float], ...]
-                 ) -> None:
-        pts = [(float(n), float(e)) for n, e in points]
-        why = check_points(pts)
-        if why or len(pts) < 2:
-            raise ValueError(why or "a plan needs at least 2 points")
-        self.points = tuple(pts)
-        legs: list[PlanLeg] = []
-        s = 0.0
-        for i in range(1, len(pts)):
-            (a, b), (c, d) = pts[i - 1], pts[i]
-            length = math.hypot(c - a, d - b)
-            legs.append(PlanLeg(i - 1, a, b, c, d, s, length, (c - a) / length,
-                                (d - b) / length))
-            s += length
-        self.legs = tuple(legs)
-        self.length_m = s
-
-    def turn_rad(self, k: int) -> float:
-        """The course change at the end of leg ``k`` (rad, + to starboard); 0
-        after the last leg."""
-        if not 0 <= k < len(self.legs) - 1:
-            return 0.0
-        return math.remainder(self.legs[k + 1].course_rad - self.legs[k].course_rad, math.tau)
-
-    def leg_at(self, s: float) -> PlanLeg:
-        """The leg the path coordinate ``s`` (m) falls on (the first or last
-        beyond the ends)."""
-        legs = self.legs
-        lo, hi = 0, len(legs) - 1
-        while lo < hi:  # the last leg whose start is at or before s
-            mid = (lo + hi + 1) // 2
-            if legs[mid].s0_m <= s:
-                lo = mid
-            else:
-                hi = mid - 1
-        return legs[lo]
-
-    def point_at(self, s: float, cross: float = 0.0) -> tuple[float, float, float]:
-        """(x, y, course) at path coordinate ``s`` (m), ``cross`` metres to
-        starboard of the leg there."""
-        leg = self.leg_at(s)
-        x, y = leg.point(s - leg.s0_m, cross)
-        return x, y, leg.course_rad
-
-    def nearest(self, x: float, y: float, s_lo: float, s_hi: float) -> tuple[float, float]:
-        """(s, cross): the point of the path between path coordinates ``s_lo`` and
-        ``s_hi`` (m) nearest (x, y), and the signed distance to it (> 0 to
-        starboard of the leg it lies on)."""
-        best = (math.inf, s_lo, 0.0)
-        for leg in self.legs:
-            a0 = max(s_lo - leg.s0_m, -math.inf if leg.index == 0 else 0.0)
-            a1 = min(s_hi - leg.s0_m,
-                     math.inf if leg.index == len(self.legs) - 1 else leg.length_m)
-            if a0 > a1:
-                continue
-            along, cross = leg.project(x, y)
-            a = min(max(along, a0), a1)
-            px, py = leg.point(a)
-            d = math.hypot(x - px, y - py)
-            if d < best[0]:
-                sign = 1.0 if cross >= 0.0 else -1.0
-                best = (d, leg.s0_m + a, sign * d)
-        return best[1], best[2]
+    along_accel_psd: float = spec(0.01, "m²/s³", "the AUV's progress along its plan: white "
+                                  "acceleration density of its speed along the path",
+                                  min=1e-6, max=10.0)
+    along_floor_m: float = spec(1.0, "m", "1σ added to every fix's position along the plan "
+                                "(the AUV rounds the plan's corners)", min=0.0, max=100.0)
+    along_window_m: float = spec(15.0, "m", "a fix is placed on the plan within this of the "
+                                 "predicted path coordinate", min=1.0, max=1000.0)
+    turn_radius_m: float = spec(6.0, "m", "the AUV's turning radius until its first corners "
+                                "show it (the plan's corners are rounded with it)",
+                                min=0.0, max=18.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -249,6 +140,8 @@ class PlanMatcher:
     _bad_reason: str = ""
     _corner_done: int = -1
     _last_t: float = -math.inf
+    #: the AUV's progress along the plan while it is on it
+    along: AlongPlan | None = None
 
     @property
     def state(self) -> str:
@@ -264,6 +157,7 @@ class PlanMatcher:
         had = self.plan is not None
         self.plan = None
         self.leg = -1
+        self.along = None
         self._reset_search()
         self._bad_since = math.nan
         self._corner_done = -1
@@ -310,22 +204,85 @@ class PlanMatcher:
         self._last_t = t
         if self.leg < 0:
             self._search(t, x, y, vx, vy, sigma)
+            if self.leg >= 0:
+                self._start_along(t, x, y, vx, vy, sigma)
         else:
+            self._progress(t)
             self._follow_on(t, x, y, vx, vy, sigma)
+        if self.leg < 0:
+            self.along = None
+
+    def fix(self, fix: AuvFix) -> None:
+        """A position fix (its emission time ``emission_utc_s`` on this matcher's
+        clock), accepted by the tracker's filter or not: it moves the AUV's
+        progress along the plan (which has its own gate)."""
+        al, p = self.along, self.params
+        if al is None or self.leg < 0 or not fix.emission_utc_s >= al.t:
+            return
+        al.predict(fix.emission_utc_s, p.along_accel_psd)
+        al.fix(fix, p.along_window_m, p.along_floor_m)
+        self._advance()
+
+    def track_fields(self, t: float) -> tuple[int, float, float, float, float]:
+        """What an AuvTrack says of the plan at time ``t`` (s, the track's time
+        origin): the leg, the path coordinate (m), the speed along the path
+        (m/s), the offset from the plan (m), the AUV's turning radius (m); −1 and
+        NaN off the plan."""
+        al = self.along
+        if self.leg < 0 or al is None or self.plan is None:
+            return -1, math.nan, math.nan, math.nan, math.nan
+        s = self.plan.advance(al.s, al.u * (t - al.t), al.radius) if t != al.t else al.s
+        return self.leg, s, al.u, al.cross + al.cross_rate * (t - al.t), al.radius
+
+    def leave(self) -> None:
+        """The track is lost: match again once it is back (no event: the loss
+        has its own)."""
+        self.leg = -1
+        self.along = None
+        self._reset_search()
+
+    # ------------------------------------------------------------ progress
+
+    def _start_along(self, t: float, x: float, y: float, vx: float, vy: float,
+                     sigma: float) -> None:
+        assert self.plan is not None
+        leg = self.plan.legs[self.leg]
+        along, cross = leg.project(x, y)
+        u = vx * leg.ux + vy * leg.uy
+        self.along = AlongPlan.start(self.plan, t, leg.s0_m + along, u,
+                                     sigma * sigma + self.params.along_floor_m ** 2, cross,
+                                     self.params.turn_radius_m)
+
+    def _progress(self, t: float) -> None:
+        """Predict the progress to ``t``."""
+        al = self.along
+        if al is not None:
+            al.predict(t, self.params.along_accel_psd)
+            self._advance()
+
+    def _advance(self) -> None:
+        """On to the leg the progress is on (never back)."""
+        al, plan = self.along, self.plan
+        if al is None or plan is None:
+            return
+        k = plan.leg_at(al.s).index
+        if k > self.leg:
+            self.leg = k
+            self._bad_since = math.nan
 
     def _search(self, t: float, x: float, y: float, vx: float, vy: float,
                 sigma: float) -> None:
         plan = self.plan
         assert plan is not None
+        best = -1
         if math.hypot(vx, vy) < self.params.min_speed_mps:
-            self._reset_search()  # hovering: its course says nothing yet
-            return
-        best, best_c = -1, math.inf
-        for leg in plan.legs:
-            f = self._fit(leg, x, y, vx, vy, sigma)
-            if f.pos_ok and f.course_ok and 0.0 <= f.along <= leg.length_m \
-                    and abs(f.cross) < best_c:
-                best, best_c = leg.index, abs(f.cross)
+            # hovering: its course says nothing yet, but an AUV waiting at its
+            # plan's first point is about to fly its first leg
+            first = plan.legs[0]
+            if math.hypot(x - first.n0, y - first.e0) <= self.params.cross_gate_m + 2.0 * sigma:
+                best = 0
+        else:
+            best = self._best_leg(x, y, vx, vy, sigma)
         if best < 0:
             self._reset_search()
             return
@@ -342,13 +299,27 @@ class PlanMatcher:
         self.events.append(("AUV back on its plan" if self.left else "AUV on its plan")
                            + f", leg {best + 1} of {n}")
 
+    def _best_leg(self, x: float, y: float, vx: float, vy: float, sigma: float) -> int:
+        """The leg the moving AUV fits best (nearest), or −1."""
+        assert self.plan is not None
+        best, best_c = -1, math.inf
+        for leg in self.plan.legs:
+            f = self._fit(leg, x, y, vx, vy, sigma)
+            if f.pos_ok and f.course_ok and 0.0 <= f.along <= leg.length_m \
+                    and abs(f.cross) < best_c:
+                best, best_c = leg.index, abs(f.cross)
+        return best
+
     def _follow_on(self, t: float, x: float, y: float, vx: float, vy: float,
                    sigma: float) -> None:
         plan = self.plan
         assert plan is not None
         p = self.params
         legs = plan.legs
-        zone = p.corner_zone_m
+        # the AUV rounds the corners: about them it is off the legs by up to
+        # about half its turning radius, on any course, over its tangent length
+        radius = self.along.radius if self.along is not None else 0.0
+        zone = max(p.corner_zone_m, 1.2 * radius)
         # on to the next leg(s) once near the corner and fitting them
         while self.leg + 1 < len(legs):
             k = self.leg
@@ -369,9 +340,9 @@ class PlanMatcher:
         k = self.leg
         leg = legs[k]
         f = self._fit(leg, x, y, vx, vy, sigma)
-        gate = p.cross_gate_m + 2.0 * sigma
         near_end = k + 1 < len(legs) and f.along >= leg.length_m - zone
         near_start = k > 0 and f.along <= zone
+        gate = p.cross_gate_m + 2.0 * sigma + (0.5 * radius if near_end or near_start else 0.0)
         reason = ""
         if abs(f.cross) > gate:
             reason = f"{abs(f.cross):.0f} m {'starboard' if f.cross > 0 else 'port'} of leg {k + 1}"
@@ -419,31 +390,6 @@ class PlanMatcher:
         self.leg = k + 1
         self._bad_since = math.nan
         return CornerTurn(t_c, k, plan.legs[k + 1].course_rad)
-
-
-def geodetic_plan(raw: object, to_ned: Callable[[float, float], tuple[float, float]]
-                  ) -> tuple[tuple[float, float], ...]:
-    """An operator's plan ``[[lat_deg, lon_deg], ...]`` (a command's
-    ``auv_plan``) as NED points (m) through ``to_ned``; an empty list is no
-    plan.  Raises ValueError naming the point and what is wrong with it."""
-    if not isinstance(raw, (list, tuple)):
-        raise ValueError(f"must be a list of [lat_deg, lon_deg], got {type(raw).__name__}")
-    if len(raw) > MAX_POINTS:
-        raise ValueError(f"has {len(raw)} points, at most {MAX_POINTS}")
-    pts: list[tuple[float, float]] = []
-    for i, p in enumerate(raw):
-        if not (isinstance(p, (list, tuple)) and len(p) == 2
-                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in p)):
-            raise ValueError(f"point {i} must be [lat_deg, lon_deg], got {p!r:.60}")
-        lat, lon = float(p[0]), float(p[1])
-        if not (math.isfinite(lat) and math.isfinite(lon) and -90.0 <= lat <= 90.0
-                and -180.0 <= lon <= 180.0):
-            raise ValueError(f"point {i} is not a latitude, longitude: {p!r:.60}")
-        pts.append(to_ned(lat, lon))
-    why = check_points(pts)
-    if why:
-        raise ValueError(why)
-    return tuple(pts)
 
 
 def turn_velocity(x: list[float], P: list[list[float]], course_rad: float) -> None:

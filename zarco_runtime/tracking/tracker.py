@@ -425,6 +425,7 @@ class AuvTracker:
                      False, ls[2], ls[3], ls[4])
         self.last_fix = fix
         out.append(fix)
+        self.plan.fix(fix)  # the AUV's progress along its plan, whatever the filter made of it
         self._last_range_only = False
         if ok:
             # only ranges the filter accepted take part in later fixes
@@ -958,7 +959,8 @@ class AuvTracker:
         kx = kf.x
         return AuvTrack(t, x0, y0, vx, vy, math.atan2(vy, vx), v, h, rls.covariance(),
                         rls.t0 + off, rls.t0, age, self._flags(age), self._lost,
-                        kx[0], kx[1], kx[2], kx[3], kf.pos_sigma(), self.plan.leg)
+                        kx[0], kx[1], kx[2], kx[3], kf.pos_sigma(),
+                        *self.plan.track_fields(rls.t0))
 
     def _track(self, t: float, last: AuvTrack) -> AuvTrack:
         """``last`` re-stamped at ``t`` with its age and flags brought up to date."""
@@ -966,7 +968,8 @@ class AuvTracker:
         return AuvTrack(t, last.x0_m, last.y0_m, last.vx_mps, last.vy_mps, last.psi_auv_rad,
                         last.v_auv_mps, last.h_auv_m, last.cov, last.t0, last.t0_utc_s, age,
                         self._flags(age), self._lost, last.kf_x_m, last.kf_y_m,
-                        last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m, self.plan.leg)
+                        last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m,
+                        *self.plan.track_fields(last.t0_utc_s))
 
     def _check_lost(self, t: float | None, out: list[AuvFix | AuvTrack]) -> None:
         """Declare the track lost when silent too long or too uncertain."""
@@ -981,7 +984,7 @@ class AuvTracker:
         if age <= p.lost_after_s and 0.5 * (pxx + pyy) <= p.lost_sigma_m ** 2:
             return
         self._lost = True
-        self.plan.leg = -1  # matched again once the track is back
+        self.plan.leave()  # matched again once the track is back
         kx = self.kf.x
         self._prior = (kx[0], kx[1])
         self.kf.reset()
