@@ -17,11 +17,11 @@ from zarco_core.auv_messages import AuvFix
 from zarco_runtime.tracking.plan import (
     MAX_POINTS,
     Plan,
+    PlanError,
     PlanMatcher,
     PlanParams,
     check_points,
     geodetic_plan,
-    turn_velocity,
 )
 
 
@@ -109,17 +109,21 @@ def test_nearest_looks_only_in_its_window() -> None:
 
 
 @pytest.mark.parametrize(("points", "why"), [
-    ([(0.0, 0.0)], "at least 2 points"),
-    ([(0.0, 0.0), (0.5, 0.5)], "points 0 and 1 are less than 1 m apart"),
-    ([(0.0, 0.0), (math.nan, 1.0)], "point 1 is not finite"),
-    ([(0.0, 0.0), (60_000.0, 0.0)], "point 1 is 60 km from the origin"),
-    ([(float(i), 0.0) for i in range(MAX_POINTS + 1)], f"at most {MAX_POINTS}"),
+    ([(0.0, 0.0)], "auv_plan: a plan needs at least 2 points (or none)"),
+    ([(0.0, 0.0), (0.5, 0.5)], "auv_plan[1]: less than 1 m from point 0"),
+    ([(0.0, 0.0), (math.nan, 1.0)], "auv_plan[1]: not finite"),
+    ([(0.0, 0.0), (60_000.0, 0.0)], "auv_plan[1]: 60 km from the origin (at most 50 km)"),
+    ([(float(i), 0.0) for i in range(MAX_POINTS + 1)],
+     f"auv_plan: has {MAX_POINTS + 1} points, at most {MAX_POINTS}"),
 ])
-def test_points_that_are_not_a_plan_are_refused_with_the_reason(
+def test_points_that_are_not_a_plan_are_refused_with_the_point_and_reason(
         points: list[tuple[float, float]], why: str) -> None:
-    assert why in check_points(points)
-    with pytest.raises(ValueError, match=why):
+    err = check_points(points)
+    assert err is not None and err.named("auv_plan") == why
+    with pytest.raises(PlanError) as exc:
         Plan(points)
+    assert exc.value.named("auv_plan") == why
+    assert check_points([(0.0, 0.0), (1.0, 0.0)]) is None
 
 
 def test_an_operators_plan_is_checked_point_by_point() -> None:
@@ -129,39 +133,15 @@ def test_an_operators_plan_is_checked_point_by_point() -> None:
     assert geodetic_plan([], to_ned) == ()
     pts = geodetic_plan([[41.0, -8.0], [41.001, -8.0]], to_ned)
     assert pts[1][0] == pytest.approx(111.195)
-    for raw, why in [("nope", "must be a list"),
-                     ([[41.0, -8.0], [41.0]], "point 1 must be [lat_deg, lon_deg]"),
-                     ([[41.0, -8.0], [True, -8.0]], "point 1 must be [lat_deg, lon_deg]"),
-                     ([[41.0, -8.0], [95.0, -8.0]], "point 1 is not a latitude, longitude"),
-                     ([[41.0, -8.0], [41.0, -8.0]], "points 0 and 1 are less than 1 m apart"),
-                     ([[41.0, -8.0]] * (MAX_POINTS + 1), f"at most {MAX_POINTS}")]:
-        with pytest.raises(ValueError, match=re_escape(why)):
+    for raw, why in [("nope", "auv_plan: must be a list of [lat_deg, lon_deg], got str"),
+                     ([[41.0, -8.0], [41.0]], "auv_plan[1]: must be [lat_deg, lon_deg]"),
+                     ([[41.0, -8.0], [True, -8.0]], "auv_plan[1]: must be [lat_deg, lon_deg]"),
+                     ([[41.0, -8.0], [95.0, -8.0]], "auv_plan[1]: not a latitude, longitude"),
+                     ([[41.0, -8.0], [41.0, -8.0]], "auv_plan[1]: less than 1 m from point 0"),
+                     ([[41.0, -8.0]] * (MAX_POINTS + 1), f"auv_plan: has {MAX_POINTS + 1}")]:
+        with pytest.raises(PlanError) as exc:
             geodetic_plan(raw, to_ned)
-
-
-def re_escape(s: str) -> str:
-    import re
-
-    return re.escape(s)
-
-
-def test_turning_a_filter_onto_the_next_leg_keeps_speed_and_uncertainty_shape() -> None:
-    """The velocity turns onto the new course at its speed; its covariance turns
-    with it (an along-track uncertainty stays along-track), stays symmetric and
-    keeps its eigenvalues; the position block is untouched."""
-    x = [5.0, 6.0, 1.2, 0.0, 0.1]
-    P = np.diag([1.0, 2.0, 0.09, 0.01, 0.002])
-    P[0, 2] = P[2, 0] = 0.1
-    Pl = P.tolist()
-    turn_velocity(x, Pl, math.pi / 2)  # north → east
-    assert x[:2] == [5.0, 6.0] and x[4] == 0.0
-    assert x[2] == pytest.approx(0.0, abs=1e-12) and x[3] == pytest.approx(1.2)
-    Q = np.array(Pl)
-    assert np.allclose(Q, Q.T)
-    assert np.allclose(np.linalg.eigvalsh(Q), np.linalg.eigvalsh(P))
-    assert Q[3, 3] == pytest.approx(0.09) and Q[2, 2] == pytest.approx(0.01)
-    assert Q[0, 3] == pytest.approx(0.1) and Q[0, 2] == pytest.approx(0.0, abs=1e-12)
-    assert np.allclose(Q[:2, :2], P[:2, :2])
+        assert exc.value.named("auv_plan").startswith(why), exc.value.named("auv_plan")
 
 
 # ------------------------------------------------------------------ matching
@@ -267,27 +247,3 @@ def test_a_hovering_auv_is_on_its_plan_only_at_its_start_and_a_cleared_plan_stop
     m.update(80.0, 30.0, 0.0, 1.0, 0.0, 1.0)
     assert m.leg == -1
     assert m.events[-1] == "AUV plan cleared; tracking without it"
-
-
-def test_the_prediction_turns_at_each_corner_once() -> None:
-    m = PlanMatcher(PlanParams())
-    m.set_plan([(0.0, 0.0), (100.0, 0.0), (100.0, 10.0), (0.0, 10.0)])
-    for i in range(10):
-        m.update(float(i), 80.0 + i * 1.0, 0.2, 1.0, 0.0, 0.5)
-    assert m.leg == 0
-    # at t = 9 the filter is at 89 m, 1 m/s north: the corner in 11 s
-    assert m.corner(9.0, 89.0, 0.2, 1.0, 0.0, 15.0) is None
-    c = m.corner(9.0, 89.0, 0.2, 1.0, 0.0, 25.0)
-    assert c is not None and c.leg == 0 and c.t == pytest.approx(20.0)
-    assert c.course_rad == pytest.approx(math.pi / 2)
-    assert m.leg == 1
-    # the same corner is not turned again; the next one comes 10 m later
-    c2 = m.corner(20.0, 100.0, 0.2, 0.0, 1.0, 25.0)
-    assert c2 is None
-    c2 = m.corner(20.0, 100.0, 0.2, 0.0, 1.0, 31.0)
-    assert c2 is not None and c2.leg == 1 and c2.t == pytest.approx(29.8)
-    assert m.leg == 2 and m.corner(29.8, 100.0, 10.0, -1.0, 0.0, 500.0) is None
-    off = PlanMatcher(PlanParams(anticipate=False))
-    off.set_plan([(0.0, 0.0), (100.0, 0.0), (100.0, 10.0)])
-    off.leg = 0
-    assert off.corner(0.0, 90.0, 0.0, 1.0, 0.0, 100.0) is None

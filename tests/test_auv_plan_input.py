@@ -28,12 +28,12 @@ VESSEL = ROOT / "config" / "zarco.toml"
 @pytest.mark.parametrize(("override", "reason"), [
     ("mission.auv_plan=[[0.0, 0.0]]", "mission.auv_plan: a plan needs at least 2 points"),
     ("mission.auv_plan=[[0.0, 0.0], [1.0]]",
-     "mission.auv_plan: point 1 must be [north, east], has 1 numbers"),
+     "mission.auv_plan[1]: must be [north, east], has 1 numbers"),
     ("mission.auv_plan=[[0.0, 0.0], ['x', 1.0]]", "mission.auv_plan[1][0]: expected a number"),
     ("mission.auv_plan=[[0.0, 0.0], [0.5, 0.0]]",
-     "mission.auv_plan: points 0 and 1 are less than 1 m apart"),
+     "mission.auv_plan[1]: less than 1 m from point 0"),
     ("mission.auv_plan=[[0.0, 0.0], [90000.0, 0.0]]",
-     "mission.auv_plan: point 1 is 90 km from the origin"),
+     "mission.auv_plan[1]: 90 km from the origin (at most 50 km)"),
     ("mission.auv_plan=[[0.0, 0.0], [10.0, 0.0]]\nmission.kind='lines'", ""),
 ])
 def test_a_bad_plan_in_the_mission_is_refused_naming_the_key(override: str,
@@ -49,7 +49,7 @@ def test_a_bad_plan_in_the_mission_is_refused_naming_the_key(override: str,
 
 
 def test_a_geodetic_plan_is_checked_in_degrees_and_converted_about_the_origin() -> None:
-    with pytest.raises(ConfigError, match=r"mission\.auv_plan: point 0 is not a latitude"):
+    with pytest.raises(ConfigError, match=r"mission\.auv_plan\[0\]: not a latitude"):
         load_scenario(FOLLOW, ['mission.frame="geodetic"',
                                "mission.auv_plan=[[95.0, -8.7], [41.19, -8.7]]"])
     cfg, mc = load_runtime_config(VESSEL, [
@@ -98,21 +98,23 @@ def test_the_follow_command_takes_a_plan_or_refuses_it_with_the_point_and_why() 
         (7.0, {"auv_plan": [geo(0.0, 0.0), [41.0, "w"]]}),
         (7.5, {"auv_plan": [geo(0.0, 0.0)] + [geo(10.0 * i, 0.0) for i in range(1, 1001)]}),
         (8.0, {"auv_plan": good}),
-    ]] + [ScriptedCommand(12.0, "stop", {})]
+    ]] + [ScriptedCommand(4.0, "arm", {}), ScriptedCommand(12.0, "stop", {})]
     seen: list[AuvPlan] = []
     rts: list[Runtime] = []
     res = run_scenario(scn, extra_tasks=[_plans(rts, seen)])
-    acks = res.extra["acks"]
-    assert len(acks) == 8
+    acks = [a for a in res.extra["acks"] if a.name == "follow"]
+    assert len(acks) == 7 and len(res.extra["acks"]) == 9
     reasons = [a.reason for a in acks]
-    assert reasons[0] == "auv_plan: point 1 is not a latitude, longitude: [91.0, 0.0]"
+    # the command's schema: shapes, ranges, sizes
+    assert reasons[0] == "auv_plan[1][0]: must be ≤ 90"
+    assert reasons[3] == "auv_plan: must be a list, got text"
+    assert reasons[4] == "auv_plan[1][1]: must be a number, got text"
+    assert reasons[5] == "auv_plan: at most 1000 items"
+    # the plan itself, about this vessel's origin
     assert reasons[1] == "auv_plan: a plan needs at least 2 points (or none)"
-    assert reasons[2] == "auv_plan: points 0 and 1 are less than 1 m apart"
-    assert reasons[3] == "auv_plan: must be a list of [lat_deg, lon_deg], got str"
-    assert reasons[4] == "auv_plan: point 1 must be [lat_deg, lon_deg], got [41.0, 'w']"
-    assert reasons[5] == "auv_plan: has 1001 points, at most 1000"
+    assert reasons[2] == "auv_plan[1]: less than 1 m from point 0"
     assert acks[6].ok and acks[6].mode == "follow"
-    assert acks[7].ok
+    assert all(a.ok for a in res.extra["acks"] if a.name in ("arm", "stop"))
     # published when following started, as NED points; cleared when it stopped
     assert [len(p.points) for p in seen] == [3, 0]
     assert _flat(seen[0].points) == pytest.approx([100.0, 100.0, 160.0, 100.0, 160.0, 115.0],
@@ -129,7 +131,7 @@ def test_without_a_plan_in_the_command_the_configured_one_is_used() -> None:
     scn = load_scenario(FOLLOW, ["mission.kind=follow", "mission.autostart=false",
                                  "scenario.max_duration_s=12.0",
                                  "mission.auv_plan=[[100.0, 100.0], [300.0, 100.0]]"])
-    scn.commands = [ScriptedCommand(5.0, "follow", {}),
+    scn.commands = [ScriptedCommand(4.0, "arm", {}), ScriptedCommand(5.0, "follow", {}),
                     ScriptedCommand(8.0, "follow", {"auv_plan": []})]
     seen: list[AuvPlan] = []
     res = run_scenario(scn, extra_tasks=[_plans([], seen)])

@@ -1,6 +1,8 @@
 """The control task executes the supervisor's directive and nothing else: NaN
-never reaches a thruster, an invalid estimate or a stale directive gives zero
-thrust, manual thrust lasts only for its lease."""
+never reaches a thruster, an invalid estimate, a stale or disarmed directive
+gives zero thrust, so do a lost position, a lost heading and a silent thruster
+controller whatever the mode (the drive interlock), manual thrust lasts only
+for its lease."""
 
 from __future__ import annotations
 
@@ -9,7 +11,15 @@ import math
 
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, run_virtual
-from zarco_core.messages import Fault, FixQuality, GuidanceStatus, Mode, NavState
+from zarco_core.messages import (
+    Fault,
+    FixQuality,
+    GuidanceStatus,
+    Heading,
+    Mode,
+    NavState,
+    ThrusterStatus,
+)
 from zarco_runtime.control.task import ControlTask
 from zarco_runtime.guidance.directive import Directive, ManualThrust
 from zarco_runtime.guidance.mission import Leg, Mission
@@ -33,13 +43,23 @@ class Rig:
         self.bus.listen(GuidanceStatus, self.status.append)
         self.task = ControlTask(RuntimeConfig(), self.bus, Clock(utc_offset_s=0.0))
 
-    def directive(self, t: float, mode: Mode, seq: int = 1, **kw: object) -> None:
-        self.bus.publish(Directive(t, seq, mode, **kw))  # type: ignore[arg-type]
+    def directive(self, t: float, mode: Mode, seq: int = 1, armed: bool = True,
+                  **kw: object) -> None:
+        self.bus.publish(Directive(t, seq, mode, armed=armed, **kw))  # type: ignore[arg-type]
+
+    def sensors(self, t: float, heading: bool = True, status: bool = True,
+                **nav: object) -> None:
+        """A compass heading, a thruster controller status and the estimate at ``t``."""
+        if heading:
+            self.bus.publish(Heading(t, "compass", "HDT", 0.0, True, 0.0))
+        if status:
+            self.bus.publish(ThrusterStatus(t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        self.bus.publish(_nav(t, **nav))  # type: ignore[arg-type]
 
 
 def test_without_a_directive_the_boat_stays_idle() -> None:
     r = Rig()
-    r.bus.publish(_nav(0.0))
+    r.sensors(0.0)
     a = r.task.tick(0.0)
     assert (a.u1, a.u2) == (0.0, 0.0)
 
@@ -47,15 +67,15 @@ def test_without_a_directive_the_boat_stays_idle() -> None:
 def test_nan_heading_gives_zero_thrust_and_a_fault() -> None:
     r = Rig()
     r.directive(0.0, Mode.LINES, mission=LINES)
-    r.bus.publish(_nav(0.0))
+    r.sensors(0.0)
     ok = r.task.tick(0.0)
     assert ok.u1 != 0.0 or ok.u2 != 0.0
-    r.bus.publish(_nav(0.05, psi=math.nan))
+    r.sensors(0.05, psi=math.nan)
     a = r.task.tick(0.05)
     assert (a.u1, a.u2) == (0.0, 0.0)
     assert r.faults and "non-finite" in r.faults[-1].reason
     # and it recovers when the input is sane again
-    r.bus.publish(_nav(0.10))
+    r.sensors(0.10)
     a = r.task.tick(0.10)
     assert a.u1 != 0.0 and math.isfinite(a.u1)
     assert r.task.fault == ""
@@ -64,11 +84,11 @@ def test_nan_heading_gives_zero_thrust_and_a_fault() -> None:
 def test_an_invalid_estimate_gives_zero_thrust_at_once() -> None:
     r = Rig()
     r.directive(0.0, Mode.LINES, mission=LINES)
-    r.bus.publish(_nav(0.0, valid=False))
+    r.sensors(0.0, valid=False)
     a = r.task.tick(0.0)
     assert (a.u1, a.u2) == (0.0, 0.0)
-    assert r.task.reason == "no valid position"
-    r.bus.publish(_nav(0.05, valid=True))
+    assert r.task.reason == "not driving: position estimate invalid"
+    r.sensors(0.05, valid=True)
     assert r.task.tick(0.05).u1 != 0.0
 
 
@@ -77,9 +97,9 @@ def test_a_stale_directive_counts_as_idle() -> None:
     r = Rig()
     timeout = r.task.cfg.supervisor.directive_timeout_s
     r.directive(0.0, Mode.LINES, mission=LINES)
-    r.bus.publish(_nav(timeout * 0.9))
+    r.sensors(timeout * 0.9)
     assert r.task.tick(timeout * 0.9).u1 != 0.0
-    r.bus.publish(_nav(timeout * 1.1))
+    r.sensors(timeout * 1.1)
     a = r.task.tick(timeout * 1.1)
     assert (a.u1, a.u2) == (0.0, 0.0)
     assert "no directive" in r.faults[-1].reason
@@ -88,7 +108,7 @@ def test_a_stale_directive_counts_as_idle() -> None:
 def test_mission_completion_reports_complete_and_stops_thrust() -> None:
     r = Rig()
     r.directive(0.0, Mode.LINES, mission=LINES)
-    r.bus.publish(_nav(0.0, x=100.5))
+    r.sensors(0.0, x=100.5)
     a = r.task.tick(0.0)
     assert (a.u1, a.u2) == (0.0, 0.0)
     assert r.status[-1].complete and r.status[-1].mode == "lines"
@@ -97,20 +117,25 @@ def test_mission_completion_reports_complete_and_stops_thrust() -> None:
 def test_manual_thrust_holds_only_for_its_lease() -> None:
     r = Rig()
     r.directive(0.0, Mode.MANUAL)
+    r.sensors(0.0)
     assert (r.task.tick(0.0).u1, r.task.tick(0.0).u2) == (0.0, 0.0)  # nothing sent yet
     r.bus.publish(ManualThrust(0.1, 40.0, -250.0, until=1.1))
+    r.sensors(0.5)
     a = r.task.tick(0.5)
     assert (a.u1, a.u2) == (40.0, -100.0)  # clamped to the scale
     r.directive(0.9, Mode.MANUAL)  # the supervisor republishes it
+    r.sensors(1.2)
     a = r.task.tick(1.2)
     assert (a.u1, a.u2) == (0.0, 0.0)
     r.bus.publish(ManualThrust(1.3, math.nan, 10.0, until=2.3))
+    r.sensors(1.4)
     a = r.task.tick(1.4)
     assert (a.u1, a.u2) == (0.0, 10.0)
 
 
 def test_manual_thrust_from_before_the_mode_was_entered_is_ignored() -> None:
     r = Rig()
+    r.sensors(0.5)
     r.bus.publish(ManualThrust(0.0, 50.0, 50.0, until=5.0))
     r.directive(0.5, Mode.MANUAL)
     a = r.task.tick(0.6)
@@ -122,9 +147,11 @@ def test_manual_thrust_lasts_across_the_directive_being_republished() -> None:
     its lease still holds (only one from before the mode began is ignored)."""
     r = Rig()
     r.directive(0.0, Mode.MANUAL)
+    r.sensors(0.0)
     r.task.tick(0.05)
     r.bus.publish(ManualThrust(0.1, 30.0, 20.0, until=1.1))
     r.directive(0.2, Mode.MANUAL)  # republished, same seq
+    r.sensors(0.25)
     a = r.task.tick(0.25)
     assert (a.u1, a.u2) == (30.0, 20.0)
 
@@ -132,7 +159,7 @@ def test_manual_thrust_lasts_across_the_directive_being_republished() -> None:
 def test_idle_directive_stops_a_running_mission_at_the_next_tick() -> None:
     r = Rig()
     r.directive(0.0, Mode.LINES, mission=LINES)
-    r.bus.publish(_nav(0.0))
+    r.sensors(0.0)
     assert r.task.tick(0.0).u1 != 0.0
     r.directive(0.02, Mode.IDLE, seq=2)
     a = r.task.tick(0.05)
@@ -150,7 +177,7 @@ def test_the_run_loop_publishes_zero_when_a_tick_raises() -> None:
         r.bus.listen(ThrusterCommand, cmds.append)
         r.task.clock = Clock(utc_offset_s=0.0)
         r.directive(0.0, Mode.LINES, mission=LINES)
-        r.bus.publish(_nav(0.0))
+        r.sensors(0.0)
 
         def boom(t: float, nav: NavState) -> object:
             raise ZeroDivisionError("guidance bug")
@@ -163,3 +190,50 @@ def test_the_run_loop_publishes_zero_when_a_tick_raises() -> None:
     cmds = run_virtual(main())
     assert cmds and (cmds[-1].u1, cmds[-1].u2) == (0.0, 0.0)
     assert "guidance bug" in cmds[-1].reason
+
+
+def test_a_disarmed_directive_gives_zero_thrust_whatever_its_mode() -> None:
+    for mode, kw in ((Mode.LINES, {"mission": LINES}), (Mode.MANUAL, {}),
+                     (Mode.HOLD, {"point": (50.0, 0.0)})):
+        r = Rig()
+        r.directive(0.0, mode, armed=False, **kw)
+        r.bus.publish(ManualThrust(0.01, 50.0, 50.0, until=5.0))
+        r.sensors(0.05)
+        a = r.task.tick(0.05)
+        assert (a.u1, a.u2) == (0.0, 0.0) and r.task.reason == "disarmed", mode
+        r.directive(0.06, mode, seq=2, armed=True, **kw)  # armed: the same mode drives
+        r.bus.publish(ManualThrust(0.07, 50.0, 50.0, until=5.0))
+        r.sensors(0.1)
+        a = r.task.tick(0.1)
+        assert (a.u1, a.u2) != (0.0, 0.0), mode
+
+
+def test_the_interlock_stops_every_mode_while_driving_is_unsafe() -> None:
+    """Heading lost, thruster controller silent, position lost: zero at the first
+    tick past the failsafe table's limit, in manual too; thrust again once healthy."""
+    fs = RuntimeConfig().failsafe
+    cases = [("heading", fs.heading_lost_s, "no compass heading"),
+             ("status", fs.thruster_silent_s, "no status from the thruster controller"),
+             ("gps", fs.position_lost_s, "no GPS position")]
+    for mode, kw in ((Mode.LINES, {"mission": LINES}), (Mode.MANUAL, {})):
+        for what, limit, why in cases:
+            r = Rig()
+            r.directive(0.0, mode, **kw)
+            r.sensors(0.0)
+            t_in, t_out = 0.9 * limit, limit + 0.02
+            for t in (t_in, t_out):
+                r.bus.publish(ManualThrust(t, 30.0, 30.0, until=t + 1.0))
+                r.directive(t, mode, **kw)
+                if what != "heading":
+                    r.bus.publish(Heading(t, "compass", "HDT", 0.0, True, 0.0))
+                if what != "status":
+                    r.bus.publish(ThrusterStatus(t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+                n = _nav(0.0 if what == "gps" else t)
+                n.gps_age_s = 0.0
+                r.bus.publish(n)
+                a = r.task.tick(t)
+                if t == t_in:
+                    assert (a.u1, a.u2) != (0.0, 0.0), (mode, what)
+                else:
+                    assert (a.u1, a.u2) == (0.0, 0.0), (mode, what)
+                    assert why in r.task.reason, (mode, what, r.task.reason)

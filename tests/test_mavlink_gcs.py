@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import os
+import random
 import socket
 import subprocess
 import sys
@@ -46,6 +47,11 @@ def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+#: how long a boat may take to start and send its first heartbeat: generous, a
+#: loaded machine starts ``zarco sim --realtime`` (pymavlink and all) slowly
+BOOT_TIMEOUT_S = 120.0
 
 
 def start_boat(url: str, *sets: str, max_s: float = 180.0) -> subprocess.Popen[bytes]:
@@ -225,7 +231,7 @@ def test_a_ground_station_drives_the_simulated_boat() -> None:
     boat = start_boat(f"udpout:127.0.0.1:{gcs.port}")
     try:
         # --- connect: the boat is a surface boat, generic autopilot, idle, disarmed
-        hb = gcs.heartbeat(lambda m: True, timeout=20.0)
+        hb = gcs.heartbeat(lambda m: True, timeout=BOOT_TIMEOUT_S)
         assert hb.type == mav.MAV_TYPE_SURFACE_BOAT
         assert hb.autopilot == mav.MAV_AUTOPILOT_GENERIC
         assert hb.custom_mode == 4 and not hb.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED
@@ -354,7 +360,7 @@ def test_signing_refuses_unsigned_commands_and_link_loss_fails_safe(tmp_path: Pa
     plain = Gcs(url, 254, 190)
     wrong = Gcs(url, 253, 190, key=os.urandom(32), accept_any=True)
     try:
-        hb = good.heartbeat(lambda m: True, timeout=20.0)
+        hb = good.heartbeat(lambda m: True, timeout=BOOT_TIMEOUT_S)
         assert hb.get_signed()  # the boat signs what it sends
         for g in (plain, wrong):
             g.heartbeat(lambda m: True, timeout=5.0)
@@ -404,5 +410,63 @@ def test_signing_refuses_unsigned_commands_and_link_loss_fails_safe(tmp_path: Pa
         err = stop_boat(boat)
         for g in (good, plain, wrong):
             g.close()
+    assert boat.returncode == 0, err[-3000:]
+    assert "Traceback" not in err, err[-3000:]
+
+
+def test_the_ground_station_sees_the_supervisors_vessel() -> None:
+    """Home, the mission and its clearing are the supervisor's, never the
+    endpoint's own: HOME_POSITION is the configured home (drawn at random near
+    the boat), clearing the mission while it runs is refused with the
+    supervisor's reason, cleared it cannot be started; a hold point that is not
+    a latitude is refused (DENIED) with the field named."""
+    rng = random.Random(int.from_bytes(os.urandom(4), "little"))
+    home = geo(rng.uniform(-30.0, 30.0), rng.uniform(-30.0, 30.0))
+    gcs = Gcs("udpin:127.0.0.1:0")
+    boat = start_boat(f"udpout:127.0.0.1:{gcs.port}",
+                      f"runtime.supervisor.home=[{home[0]:.7f}, {home[1]:.7f}]")
+    try:
+        gcs.heartbeat(lambda m: True, timeout=20.0)
+        gcs.wait("GPS_RAW_INT", lambda m: m.fix_type == mav.GPS_FIX_TYPE_RTK_FIXED, 15.0)
+        assert gcs.command(mav.MAV_CMD_REQUEST_MESSAGE,
+                           mav.MAVLINK_MSG_ID_HOME_POSITION) == mav.MAV_RESULT_ACCEPTED
+        hp = gcs.last["HOME_POSITION"]
+        assert (hp.latitude, hp.longitude) == (round(home[0] * 1e7), round(home[1] * 1e7))
+
+        # a hold point that is no latitude: refused before the supervisor, field named
+        mark = len(gcs.texts)
+        assert gcs.command(mav.MAV_CMD_NAV_LOITER_UNLIM, 0, 0, 0, 0, 95.0,
+                           home[1]) == mav.MAV_RESULT_DENIED
+        gcs.wait_text(lambda t: "lat_deg" in t and "refused" in t, mark)
+
+        wps = [geo(5.0, 0.0), geo(25.0, 0.0), geo(25.0, 15.0)]
+        g6 = mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+        assert gcs.upload([(g6, mav.MAV_CMD_NAV_WAYPOINT, 0.0, lat, lon)
+                           for lat, lon in wps]) == mav.MAV_MISSION_ACCEPTED
+        assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED
+        assert gcs.command(mav.MAV_CMD_MISSION_START) == mav.MAV_RESULT_ACCEPTED
+        gcs.heartbeat(lambda m: m.custom_mode == 10)
+        # running: the supervisor keeps it
+        mark = len(gcs.texts)
+        gcs.mav.mission_clear_all_send(BOAT[0], BOAT[1], mav.MAV_MISSION_TYPE_MISSION)
+        ack = gcs.wait("MISSION_ACK", lambda m: m.target_system == 255)
+        assert ack.type == mav.MAV_MISSION_ERROR
+        gcs.wait_text(lambda t: "mission" in t and "running" in t, mark)
+        assert len(gcs.download()) == 3
+        # stopped, it can be cleared, and then there is nothing to start
+        assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 0) == mav.MAV_RESULT_ACCEPTED
+        gcs.heartbeat(lambda m: m.custom_mode == 4)
+        gcs.mav.mission_clear_all_send(BOAT[0], BOAT[1], mav.MAV_MISSION_TYPE_MISSION)
+        ack = gcs.wait("MISSION_ACK", lambda m: m.target_system == 255)
+        assert ack.type == mav.MAV_MISSION_ACCEPTED
+        assert gcs.download() == []
+        mark = len(gcs.texts)
+        assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED
+        assert gcs.command(mav.MAV_CMD_MISSION_START) == mav.MAV_RESULT_TEMPORARILY_REJECTED
+        gcs.wait_text(lambda t: "no mission loaded" in t, mark)
+    finally:
+        err = stop_boat(boat)
+        gcs.close()
+        print("\n".join(gcs.texts))
     assert boat.returncode == 0, err[-3000:]
     assert "Traceback" not in err, err[-3000:]

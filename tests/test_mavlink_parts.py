@@ -5,6 +5,7 @@ choices, cross-field checks), mission items ↔ lines missions, settings."""
 from __future__ import annotations
 
 import os
+import random
 from pathlib import Path
 
 import pytest
@@ -16,7 +17,10 @@ from zarco_runtime.guidance.mission import Mission, legs_from_points
 from zarco_runtime.links.mavlink.mission import Item, items_from_mission, parse_items
 from zarco_runtime.links.mavlink.params import TABLE, ParamTable, f32
 from zarco_runtime.links.mavlink.protocol import (
+    ASCII,
     CUSTOM_MODE,
+    STATUSTEXT_MAX_CHUNKS,
+    STATUSTEXT_MAX_LEN,
     base_mode,
     mav,
     mix_manual,
@@ -131,6 +135,32 @@ def test_status_texts_are_ascii_chunks_of_50() -> None:
     assert b"".join(chunks).decode("ascii") == long.replace("≥", ">=")
     exact = "x" * 100
     assert text_chunks(exact) == [b"x" * 50, b"x" * 50, b""]  # an empty chunk ends it
+
+
+@pytest.mark.parametrize("n", [0, 1, 49, 50, 51, 449, 450, 451, 499, 500, 501, 12_799,
+                               12_800, 12_801, 60_000, 1_000_000])
+def test_status_texts_are_bounded_cut_with_an_ellipsis_and_always_pack(n: int) -> None:
+    rng = random.Random(n)
+    alphabet = "abc ≥°→€\x1b[31m\x00\n\t\x7f"
+    text = "".join(rng.choice(alphabet) for _ in range(n))
+    chunks = text_chunks(text)
+    assert 1 <= len(chunks) <= STATUSTEXT_MAX_CHUNKS <= 256
+    assert all(len(c) <= 50 for c in chunks)
+    joined = b"".join(chunks)
+    assert all(32 <= ch < 127 for ch in joined), joined  # printable ASCII only
+    assert len(joined) <= STATUSTEXT_MAX_LEN
+    # a chunk of 50 is never the last: a receiver knows where the text ends
+    assert len(chunks[-1]) < 50
+    spelt = text.translate(ASCII)
+    if len(spelt) > STATUSTEXT_MAX_LEN:
+        assert joined.endswith(b"...") and len(joined) == STATUSTEXT_MAX_LEN
+    else:
+        assert len(joined) == len(spelt.encode("ascii", "replace"))
+    m = mav.MAVLink(None, 1, 1)
+    for i, c in enumerate(chunks):  # every chunk packs, and parses back
+        buf = mav.MAVLink_statustext_message(mav.MAV_SEVERITY_INFO, c, 7, i).pack(m)
+        back = mav.MAVLink(None, 255, 190).parse_buffer(bytearray(buf))
+        assert back is not None and back[0].text.encode() == c.rstrip(b"\0")
 
 
 # ------------------------------------------------------------ parameters

@@ -90,13 +90,27 @@ def test_two_vessels_one_console(tmp_path: Path) -> None:
             assert obs.snapshot()["alpha"].state["mode"] == "hold"
             # the last mission can be resumed after a stop
             assert shore("--vessel", "beta", "stop", env=env).returncode == 0
-            _wait(obs, "beta", lambda s: s["mode"] == "idle")
+            _wait(obs, "beta", lambda s: s["mode"] == "idle" and not s["armed"])
+            table = shore("status", "--once", "--count", "2", env=env)
+            assert [ln.split()[2] for ln in table.stdout.splitlines()
+                    if ln.startswith("beta ")] == ["disarmed"], table.stdout
+            # armed again from the console, then the mission goes on
+            r = shore("--vessel", "beta", "arm", env=env)
+            assert r.returncode == 0 and "beta: arm accepted" in r.stdout, r.stdout + r.stderr
+            _wait(obs, "beta", lambda s: s["armed"])
             r = shore("--vessel", "beta", "resume", env=env)
             assert r.returncode == 0 and "mode lines" in r.stdout
+            table = shore("status", "--once", "--count", "2", env=env)
+            assert [ln.split()[1:3] for ln in table.stdout.splitlines()
+                    if ln.startswith("beta ")] == [["lines", "ARMED"]], table.stdout
+            # disarmed from the console: idle
+            r = shore("--vessel", "alpha", "disarm", env=env)
+            assert r.returncode == 0 and "alpha: disarm accepted; mode idle" in r.stdout
+            _wait(obs, "alpha", lambda s: s["mode"] == "idle" and not s["armed"])
             # a vessel nobody has: no reply
             r = shore("--vessel", "gamma", "stop", env=env)
             assert r.returncode == 3 and "no reply" in r.stderr
-            assert _acks(obs, "alpha")[-1].startswith("mode from shore:alice")
+            assert _acks(obs, "alpha")[-1].startswith("disarm from shore:alice")
         finally:
             obs.close()
     assert a.stop() == 0 and b.stop() == 0

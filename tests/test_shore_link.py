@@ -12,6 +12,7 @@ import itertools
 import json
 import os
 import random
+import threading
 import time
 import tty
 from collections.abc import Awaitable, Callable
@@ -49,10 +50,16 @@ def _config(port: int, **shore: Any) -> RuntimeConfig:
 Body = Callable[[Bus, Any, NmeaDevice], Awaitable[None]]
 
 
-def _run(cfg: RuntimeConfig, port: int, body: Body, gps_path: str = "loop://") -> None:
+def _run(cfg: RuntimeConfig, port: int, body: Body, gps_path: str = "loop://",
+         seen: dict[str, Any] | None = None) -> None:
     """The supervisor, the shore link and the GPS driver on one loop; ``body`` gets
     the bus, an open client session (blocking calls go through an executor) and
-    the GPS driver."""
+    the GPS driver; ``seen`` the link (``link``) and its supervision (``shore``)."""
+    seen = {} if seen is None else seen
+
+    def link(ctx: Any, bus: Bus, clock: Clock) -> ShoreLink:
+        seen["link"] = ShoreLink(cfg, bus, clock, ctx)
+        return seen["link"]
 
     async def main() -> None:
         bus, clock = Bus(), Clock()
@@ -60,7 +67,8 @@ def _run(cfg: RuntimeConfig, port: int, body: Body, gps_path: str = "loop://") -
                          lambda line, t: parse_gps(line, t, "gps"), rtcm=True)
         comps = [Supervised("supervisor", lambda ctx: Supervisor(cfg, bus, clock, ctx), bus,
                             clock),
-                 Supervised("shore", lambda ctx: ShoreLink(cfg, bus, clock, ctx), bus, clock)]
+                 Supervised("shore", lambda ctx: link(ctx, bus, clock), bus, clock)]
+        seen["shore"] = comps[1]
         tasks = [asyncio.create_task(c.run()) for c in comps]
         tasks.append(asyncio.create_task(gps.run()))
         loop = asyncio.get_running_loop()
@@ -74,6 +82,12 @@ def _run(cfg: RuntimeConfig, port: int, body: Body, gps_path: str = "loop://") -
                 if loop.time() > deadline:
                     raise
                 await asyncio.sleep(0.1)
+        # the link's first state comes after all its declarations (the queryable too)
+        up = asyncio.Event()
+        sub = session.declare_subscriber("zarco/v1/state",
+                                         lambda _s: loop.call_soon_threadsafe(up.set))
+        await asyncio.wait_for(up.wait(), 10.0)
+        await loop.run_in_executor(None, sub.undeclare)
         try:
             await body(bus, session, gps)
         finally:
@@ -100,13 +114,14 @@ def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
         cases: list[tuple[str, bytes | str, dict[str, Any]]] = [
             ("stop", "{}", {"ok": True, "mode": "idle", "reason": ""}),
             ("stop", "", {"ok": True}),                                  # empty payload = {}
-            ("mode", '{"mode": "hold"}', {"ok": False, "reason": "no valid position"}),
+            ("mode", '{"mode": "hold"}', {"ok": False, "reason": "disarmed"}),
             ("mode", '{"mode": "sideways"}', {"ok": False}),
-            ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "not in manual mode"}),
-            ("mode", '{"mode": "manual"}', {"ok": True, "mode": "manual"}),
+            ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "disarmed"}),
+            ("mode", '{"mode": "manual"}', {"ok": False, "reason": "disarmed"}),
+            ("arm", "{}", {"ok": False, "reason": "no valid position"}),
             ("thrust", '{"u1": "x", "u2": 10}', {"ok": False}),
-            ("thrust", '{"u1": 10, "u2": 10}', {"ok": True, "mode": "manual"}),
-            ("fly", "{}", {"ok": False, "reason": "unknown command 'fly'"}),
+            ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "disarmed"}),
+            ("fly", "{}", {"ok": False}),
             ("stop", "not json", {"ok": False}),
             ("stop", "[1, 2]", {"ok": False}),
             ("stop", b"\xff\xfe", {"ok": False}),
@@ -118,7 +133,7 @@ def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
             assert set(body_) == {"ok", "id", "mode", "reason"}
             for k, v in want.items():
                 assert body_[k] == v, (name, payload, body_)
-            if not body_["ok"] and name != "fly":
+            if not body_["ok"]:
                 assert body_["reason"]
         # the attachment names the user (the command's source) and its id
         r = await _get(s, "zarco/v1/cmd/stop", "{}",
@@ -130,8 +145,9 @@ def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
         assert len(r) == 1
         wild = json.loads(r[0].ok.payload.to_bytes())
         assert not wild["ok"] and wild["reason"].startswith("bad request")
-        # malformed payloads never reached the supervisor; the others did, once each
-        assert len(seen) == 10
+        # malformed payloads and unknown or ill-typed commands never reached the
+        # supervisor (refused at decoding); the others did, once each
+        assert len(seen) == 8
 
     _run(_config(port), port, body)
 
@@ -158,9 +174,11 @@ def test_telemetry_payloads_follow_the_contract() -> None:
         assert set(st) >= STATE_KEYS
         assert st["mode"] == "idle" and st["lat_deg"] is None and st["failsafes"] == []
         assert abs(st["t"] - time.time()) < 1.0  # UTC seconds
-        # 5 Hz: the gaps between states are 0.2 s
-        gaps = [b - a for a, b in itertools.pairwise(stamps)]
-        assert len(gaps) >= 8 and abs(sorted(gaps)[len(gaps) // 2] - 0.2) < 0.03
+        # published again and again (at shore.state_hz, 5 Hz: how steadily on this
+        # machine is the benchmark's figure, tests/bench/shore.py state_interval_ms)
+        assert len(stamps) >= 3 and stamps == sorted(stamps)
+        ts = [x["t"] for x in got["state"]]
+        assert all(b > a for a, b in itertools.pairwise(ts)), ts
         h = got["health"][-1]
         assert {"t", "devices"} <= set(h)
         assert set(h["devices"]["gps"]) >= {"state", "age_s", "ok", "bad"}
@@ -169,6 +187,162 @@ def test_telemetry_payloads_follow_the_contract() -> None:
         assert ev[0]["kind"] == "fault"
 
     _run(_config(port), port, body)
+
+
+HOSTILE_PAYLOADS: list[tuple[bytes, str]] = [
+    (b"[" * 30000, "nested deeper"),
+    (b'{"a":' * 5000, "nested deeper"),
+    (b'{"a": [[[[[[[[1]]]]]]]]}', "nested deeper than 8"),
+    (b"\xff\xfe{}", "not UTF-8 JSON"),
+    (b"not json", "not UTF-8 JSON"),
+    (b"[1, 2]", "must be a JSON object, got an array"),
+    (b"7", "must be a JSON object, got a number"),
+    (b'{"x": "' + b"a" * 70000 + b'"}', "more than 65536"),
+]
+HOSTILE_ATTACHMENTS: list[tuple[bytes, str]] = [
+    (b"[" * 30000, "attachment: "),
+    (b"\xff", "attachment: not UTF-8 JSON"),
+    (b"garbage", "attachment: not UTF-8 JSON"),
+    (b'{"user": "' + b"u" * 2000 + b'"}', "attachment: 2012 bytes, more than 1024"),
+    (json.dumps({"user": "x" * 65}).encode(), "attachment.user: at most 64 printable"),
+    (json.dumps({"user": "\x1b[31mred"}).encode(), "attachment.user: at most 64 printable"),
+    (json.dumps({"id": [1]}).encode(), "attachment.id: must be a string"),
+]
+HOSTILE_BEATS = [b"[" * 30000, b"\xff", b"garbage", b'{"user": 5}', b'{"t": "now"}',
+                 b'{"user": "' + b"u" * 2000 + b'"}', b"[]"]
+
+
+def test_one_bad_item_never_drops_another(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Hostile and good commands and heartbeats sent at once (so that they share
+    the inbox's drains): each query gets exactly one reply, the bad ones refused
+    with the field and the reason, every good heartbeat reaches the bus, an
+    exception inside the link becomes a refusal and a counted fault, and the
+    link never restarts."""
+    from zarco_runtime.links.shore import requests
+
+    port = free_port()
+    seen: dict[str, Any] = {}
+    real = requests.request
+
+    def request(key: str, prefix: str, payload: bytes, *a: Any) -> Any:
+        if b"boom" in payload:  # a bug in the link's own reading
+            raise OverflowError("int too large to convert to float")
+        return real(key, prefix, payload, *a)
+
+    monkeypatch.setattr(requests, "request", request)
+
+    async def body(bus: Bus, s: Any, _gps: NmeaDevice) -> None:
+        beats: list[OperatorHeartbeat] = []
+        bus.listen(OperatorHeartbeat, beats.append)
+        replies: dict[str, list[dict[str, Any]]] = {}
+        lock = threading.Lock()
+        loop = asyncio.get_running_loop()
+
+        def on_reply(tag: str) -> Any:
+            def cb(r: Any) -> None:
+                body_ = json.loads(r.ok.payload.to_bytes()) if r.ok is not None else {
+                    "zenoh_error": r.err.payload.to_bytes().decode()}
+                with lock:
+                    replies[tag].append(body_)
+            return cb
+
+        sent: dict[str, tuple[str, bytes, bytes, str]] = {}
+        for i, (p, why) in enumerate(HOSTILE_PAYLOADS):
+            sent[f"p{i}"] = ("stop", p, b"", why)
+        for i, (a, why) in enumerate(HOSTILE_ATTACHMENTS):
+            sent[f"a{i}"] = ("stop", b"{}", a, why)
+        sent["key"] = ("Stop", b"{}", b"", "key: expected zarco/v1/cmd/<name>")
+        sent["deep"] = ("stop/now", b"{}", b"", "key: expected")
+        sent["boom"] = ("stop", b'{"boom": 1}', b"", "OverflowError")
+        for i in range(12):
+            sent[f"good{i}"] = ("stop", b"{}", json.dumps({"id": f"good-{i}",
+                                                           "user": "alice"}).encode(), "")
+
+        def fire() -> None:
+            for k, (name, payload, att, _) in sent.items():
+                replies[k] = []
+                kw: dict[str, Any] = {"attachment": att} if att else {}
+                s.get(f"zarco/v1/cmd/{name}", on_reply(k), payload=payload, timeout=10.0,
+                      **kw)
+                if k.startswith("good"):  # heartbeats between the commands
+                    s.put("zarco/v1/operator", json.dumps({"t": time.time(),
+                                                           "user": f"op{k[4:]}"}))
+                for hb in HOSTILE_BEATS[:2]:
+                    s.put("zarco/v1/operator", hb)
+                time.sleep(0.02)  # within what the link reads (16 every 50 ms)
+            for hb in HOSTILE_BEATS:
+                s.put("zarco/v1/operator", hb)
+
+        await loop.run_in_executor(None, fire)
+        deadline = loop.time() + 20.0
+        while loop.time() < deadline:
+            with lock:
+                if all(replies[k] for k in sent):
+                    break
+            await asyncio.sleep(0.05)
+        await asyncio.sleep(0.5)  # a second reply would have come by now
+        for k, (*_, why) in sent.items():
+            got = replies[k]
+            assert len(got) == 1, (k, got)
+            r = got[0]
+            assert set(r) == {"ok", "id", "mode", "reason"}, (k, r)
+            if why:
+                assert r["ok"] is False and why in r["reason"], (k, r)
+            else:
+                assert r["ok"] is True and r["id"] == f"good-{k[4:]}", (k, r)
+        assert {b.user for b in beats} == {f"op{i}" for i in range(12)}
+        link = seen["link"]
+        c = link.link_counters()
+        assert c["faults"] == 1
+        assert c["bad_heartbeats"] == len(HOSTILE_BEATS) + 2 * len(sent)
+        assert c["commands_bad"] == len(HOSTILE_PAYLOADS) + len(HOSTILE_ATTACHMENTS) + 2
+        assert seen["shore"].restarts == 0
+
+    _run(_config(port), port, body, seen=seen)
+
+
+def test_a_source_beyond_its_command_rate_is_answered_busy() -> None:
+    """A burst from one source: its first commands (twice ``commands_per_s``) reach
+    the supervisor, the rest are answered "busy" at once; another source and
+    ``stop`` are not held back by it; every query gets exactly one reply."""
+    port = free_port()
+
+    async def body(bus: Bus, s: Any, _gps: NmeaDevice) -> None:
+        seen: list[Command] = []
+        bus.listen(Command, seen.append)
+        replies: dict[int, list[dict[str, Any]]] = {i: [] for i in range(60)}
+        lock = threading.Lock()
+        loop = asyncio.get_running_loop()
+
+        def fire() -> None:
+            for i in range(60):
+                def cb(r: Any, i: int = i) -> None:
+                    with lock:
+                        replies[i].append(json.loads(r.ok.payload.to_bytes()))
+                user = "carol" if i == 50 else "bob"
+                s.get(f"zarco/v1/cmd/{'stop' if i == 55 else 'thrust'}", cb,
+                      payload='{"u1": 0, "u2": 0}' if i != 55 else "{}",
+                      attachment=json.dumps({"user": user, "id": f"c{i}"}), timeout=10.0)
+
+        await loop.run_in_executor(None, fire)
+        deadline = loop.time() + 15.0
+        while loop.time() < deadline:
+            with lock:
+                if all(replies.values()):
+                    break
+            await asyncio.sleep(0.05)
+        await asyncio.sleep(0.3)
+        assert all(len(r) == 1 for r in replies.values()), replies
+        busy = [i for i, r in replies.items() if r[0]["reason"].startswith("busy")]
+        # 5 commands a second, bursts of 10: a burst of 58 from bob lets 10 to 12 pass
+        assert 46 <= len(busy) <= 48, busy
+        assert all("more than 5 commands per second from shore:bob" in replies[i][0]["reason"]
+                   for i in busy)
+        assert 50 not in busy and 55 not in busy  # carol's, and a stop
+        assert replies[55][0]["ok"] is True
+        assert len(seen) == 60 - len(busy)  # the busy ones never reached the supervisor
+
+    _run(_config(port, commands_per_s=5.0), port, body)
 
 
 def test_operator_heartbeat_reaches_the_bus() -> None:

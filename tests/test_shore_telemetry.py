@@ -50,6 +50,17 @@ def test_auv_course_is_clockwise_from_north_in_0_360() -> None:
     assert west["course_deg"] == 270.0 and west["distance_m"] is None
 
 
+def test_auv_carries_the_sound_speed_estimate_and_its_sigma() -> None:
+    tr = _track(int(TrackFlags.INITIALISED))
+    tr.sound_speed_mps, tr.sound_speed_sigma_mps = 1486.4213, 0.6149
+    a = telemetry.auv(0.0, tr, FRAME, None)
+    assert a["sound_speed_mps"] == 1486.42 and a["sound_speed_sigma_mps"] == 0.61
+    # a track built without them (NaN) says null, never NaN
+    b = json.loads(json.dumps(telemetry.auv(0.0, _track(int(TrackFlags.INITIALISED)), FRAME,
+                                            None), allow_nan=False))
+    assert b["sound_speed_mps"] is None and b["sound_speed_sigma_mps"] is None
+
+
 def test_auv_status_from_flags() -> None:
     f = TrackFlags
     cases = [(f.NONE, False, "acquiring"), (f.INITIALISED | f.TURNING, False, "turning"),
@@ -78,3 +89,26 @@ def test_state_from_the_bus() -> None:
     # guidance older than a second no longer describes the mission
     stale = telemetry.state("v1", 1.7e9, 4.5, nav, g, None, None, None)
     assert stale["leg"] is None and stale["xtrack_m"] is None
+
+
+def test_auv_position_covariance_is_the_line_models_at_the_message_time() -> None:
+    import numpy as np
+
+    rng = np.random.default_rng(7)
+    for dt in (0.0, 0.4, 5.0, 30.0):
+        a = rng.normal(size=(4, 4))
+        c = a @ a.T + np.diag([4.0, 9.0, 0.01, 0.02])  # a valid (x0, y0, vx, vy) covariance
+        tr = _track(int(TrackFlags.INITIALISED), t=10.0 + dt)
+        tr.cov = tuple(float(v) for v in c.ravel())
+        got = telemetry.auv(0.0, tr, FRAME, None)["pos_cov_m2"]
+        j = np.array([[1.0, 0.0, dt, 0.0], [0.0, 1.0, 0.0, dt]])  # ∂(x, y)/∂(x0, y0, vx, vy)
+        want = j @ c @ j.T
+        assert np.allclose(got, [want[0, 0], want[0, 1], want[1, 1]], atol=1e-4), (dt, got)
+    assert telemetry.auv(0.0, _track(int(TrackFlags.INITIALISED)), FRAME, None)[
+        "pos_cov_m2"] == [0.0, 0.0, 0.0]
+    short = _track(int(TrackFlags.INITIALISED))
+    short.cov = ()
+    assert telemetry.auv(0.0, short, FRAME, None)["pos_cov_m2"] is None
+    nan = _track(int(TrackFlags.INITIALISED))
+    nan.cov = (math.nan,) * 16
+    assert json.dumps(telemetry.auv(0.0, nan, FRAME, None)["pos_cov_m2"]) == "[null, null, null]"

@@ -14,9 +14,10 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import tty
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -166,6 +167,9 @@ def test_the_thruster_port_is_opened_exclusively(tmp_path: Path) -> None:
         return subprocess.run(["/bin/sh", "-c", f": <> {path}"], user=65534, cwd="/",
                               capture_output=True, text=True, timeout=10)
 
+    # a spare port made first: a pty made after the runtime's are closed could get
+    # the thruster port's number while the kernel is still releasing it
+    spare = Pty()
     with running(tmp_path) as (_p, ptys):
         path = ptys["thrusters"].path
         os.chmod(path, 0o666)  # as a port the operators' group may open
@@ -198,7 +202,6 @@ def test_the_thruster_port_is_opened_exclusively(tmp_path: Path) -> None:
         assert "busy" in out.stderr.lower(), out.stderr
     # a port with the same permissions that no runtime holds opens for that user:
     # the refusal above was the runtime's exclusive open, not the permissions
-    spare = Pty()
     os.chmod(spare.path, 0o666)
     assert probe(spare.path).returncode == 0
     spare.close()
@@ -231,13 +234,39 @@ def test_zarco_run_loads_no_simulator_hil_plotting_or_evaluation_code(tmp_path: 
 
 class ThrusterController:
     """A fake thruster controller on the master side: answers $PZTHS at 5 Hz and
-    records every $PZTHR it receives."""
+    records every $PZTHR it receives.  Used as a context manager it answers from
+    a thread of its own, all the time, as a real controller does (the runtime's
+    ``thruster_silent`` failsafe fires 0.6 s after the last answer, and a loaded
+    machine can take longer than that to run a ``zarco ctl``)."""
 
     def __init__(self, pty: Pty) -> None:
         self.pty = pty
         self.framer = NmeaFramer()
         self.commands: list[tuple[float, float]] = []
         self._next = 0.0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def __enter__(self) -> ThrusterController:
+        def serve() -> None:
+            while not self._stop.is_set():
+                self.poll()
+
+        self._thread = threading.Thread(target=serve, name="thruster-controller", daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+
+    def wait(self, cond: Callable[[], bool], timeout: float) -> bool:
+        """Wait (up to ``timeout`` s) until ``cond()`` holds."""
+        end = time.monotonic() + timeout
+        while not cond() and time.monotonic() < end:
+            time.sleep(0.02)
+        return cond()
 
     def poll(self, dt: float = 0.05) -> None:
         select.select([self.pty.master], [], [], dt)
@@ -252,35 +281,73 @@ class ThrusterController:
                 os.write(self.pty.master, encode_pzths(u1, u2, 0, 0, 0.0, 0.0))
 
 
+class Sensors(threading.Thread):
+    """The simulated world's GPS and compass bytes into their ptys, in real time (the
+    loop is not closed: the boat stays where it is, which is all arming needs)."""
+
+    def __init__(self, gps: Pty, compass: Pty) -> None:
+        super().__init__(daemon=True)
+        from drivers.sim.world import SimWorld
+        from zarco_runtime.settings import Origin
+        from zarco_tools.scenario import load_scenario
+
+        scn = load_scenario(Path(__file__).resolve().parents[1] / "config" / "scenarios"
+                            / "rectangle.toml")
+        o = Origin()  # the vessel file's (the test's configuration sets none)
+        scn.world.origin_lat_deg, scn.world.origin_lon_deg = o.lat_deg, o.lon_deg
+        self.world = SimWorld(scn.world, 1)
+        self.gps, self.compass = gps, compass
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        t0 = time.monotonic()
+        k = 0
+        while not self.stop.is_set():
+            k += 1
+            t = k * 0.05
+            time.sleep(max(0.0, t0 + t - time.monotonic()))
+            self.world.advance_to(t)
+            with contextlib.suppress(OSError):
+                os.write(self.compass.master, self.world.compass_bytes(t))
+                if k % 2 == 0:
+                    os.write(self.gps.master, self.world.gps_bytes(t))
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGQUIT])
 def test_every_stop_signal_leaves_zero_thrust_as_the_last_command(
         tmp_path: Path, sig: signal.Signals) -> None:
-    with running(tmp_path) as (p, ptys):
-        ctl = ThrusterController(ptys["thrusters"])
-        end = time.monotonic() + 5.0
-        while time.monotonic() < end and not ctl.commands:
-            ctl.poll()
-        ack = _ctl(tmp_path, "mode", {"mode": "manual"})  # through `zarco ctl`
-        assert ack["ok"], ack
-        # drive: thrust renewed well within the lease, on one socket connection
-        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-            s.connect(str(tmp_path / "control.sock"))
-            f = s.makefile("rw")
-            end = time.monotonic() + 30.0
-            while time.monotonic() < end and ctl.commands[-1:] != [(50.0, -30.0)]:
-                f.write(json.dumps({"name": "thrust", "args": {"u1": 50.0, "u2": -30.0}})
-                        + "\n")
-                f.flush()
-                assert json.loads(f.readline())["ok"]
-                ctl.poll(0.1)
-        assert ctl.commands[-1] == (50.0, -30.0)  # under way when the signal comes
-        p.send_signal(sig)
-        end = time.monotonic() + 15.0
-        while p.poll() is None and time.monotonic() < end:
-            ctl.poll()
-        for _ in range(5):
-            ctl.poll(0.02)
-        _out, err = p.communicate(timeout=5)
+    with running(tmp_path) as (p, ptys), ThrusterController(ptys["thrusters"]) as ctl:
+        sensors = Sensors(ptys["gps"], ptys["compass"])
+        sensors.start()
+        try:
+            assert ctl.wait(lambda: bool(ctl.commands), 30.0), "no $PZTHR from the runtime"
+            ack = _ctl(tmp_path, "mode", {"mode": "manual"})  # through `zarco ctl`
+            assert ack["reason"] == "disarmed", ack
+            end = time.monotonic() + 20.0  # arm as an operator does, once the boat is ready
+            while not (ack := _ctl(tmp_path, "arm"))["ok"] and time.monotonic() < end:
+                time.sleep(0.2)
+            assert ack["ok"], ack
+            ack = _ctl(tmp_path, "mode", {"mode": "manual"})
+            assert ack["ok"], ack
+            # drive: thrust renewed well within the lease, on one socket connection
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+                s.connect(str(tmp_path / "control.sock"))
+                f = s.makefile("rw")
+                end = time.monotonic() + 30.0
+                while time.monotonic() < end and ctl.commands[-1:] != [(50.0, -30.0)]:
+                    f.write(json.dumps({"name": "thrust", "args": {"u1": 50.0, "u2": -30.0}})
+                            + "\n")
+                    f.flush()
+                    reply = json.loads(f.readline())
+                    assert reply["ok"], reply
+                    ctl.wait(lambda: ctl.commands[-1:] == [(50.0, -30.0)], 0.1)
+            assert ctl.commands[-1] == (50.0, -30.0)  # under way when the signal comes
+            p.send_signal(sig)
+            _out, err = p.communicate(timeout=30)
+            # the controller's thread reads the last bytes on the wire
+            ctl.wait(lambda: ctl.commands[-1] == (0.0, 0.0), 5.0)
+        finally:
+            sensors.stop.set()
         assert p.returncode == 0, err[-2000:]
         assert ctl.commands[-1] == (0.0, 0.0)
         assert f"stopping: {sig.name}" in err

@@ -123,13 +123,18 @@ class AuvTrack:
     (m, m/s), ``kf_pos_sigma_m`` the RMS of its two position standard
     deviations.  ``fix_age_s``: runtime seconds since the emission time of the
     last accepted fix.  ``flags``: :class:`TrackFlags` bits; ``lost`` mirrors
-    the LOST bit.  ``plan_leg``: the leg of the AUV's plan (:class:`AuvPlan`,
-    0 = from its first point to its second) the AUV is on, −1 without a plan
-    or off it; then ``plan_s_m``: its progress along the plan at ``t0`` (m of
-    path from the plan's first point), ``plan_speed_mps`` its speed along the
-    plan, ``plan_cross_m`` its offset from the plan (m, + to starboard),
-    ``plan_turn_radius_m`` the radius it rounds the plan's corners with (m);
-    NaN off the plan.
+    the LOST bit.  ``sound_speed_mps``: the sound speed the ranges are
+    computed with — the tracker's online estimate (the configured one until
+    the geometry makes it observable, and when estimation is off);
+    ``sound_speed_sigma_mps`` its 1σ (the configured uncertainty while not
+    observable, 0 when estimation is off); ``sound_speed_converged``: that σ
+    is within the configured convergence bound.  ``plan_leg``: the leg of the
+    AUV's plan (:class:`AuvPlan`, 0 = from its first point to its second) the
+    AUV is on, −1 without a plan or off it; then ``plan_s_m``: its progress
+    along the plan at ``t0`` (m of path from the plan's first point),
+    ``plan_speed_mps`` its speed along the plan, ``plan_cross_m`` its offset
+    from the plan (m, + to starboard), ``plan_turn_radius_m`` the radius it
+    rounds the plan's corners with (m); NaN off the plan.
     """
 
     t: float
@@ -151,6 +156,9 @@ class AuvTrack:
     kf_vx_mps: float
     kf_vy_mps: float
     kf_pos_sigma_m: float
+    sound_speed_mps: float = math.nan
+    sound_speed_sigma_mps: float = math.nan
+    sound_speed_converged: bool = False
     plan_leg: int = -1
     plan_s_m: float = math.nan
     plan_speed_mps: float = math.nan

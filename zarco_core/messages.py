@@ -16,6 +16,11 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 
+from zarco_core.commands import CommandArgs
+from zarco_core.modes import MOVING, UNDER_WAY, Mode
+
+__all__ = ["MOVING", "UNDER_WAY", "Mode"]  # re-exported: the modes live in zarco_core.modes
+
 
 class FixQuality(enum.IntEnum):
     """GNSS fix quality, ordered from worst to best."""
@@ -279,44 +284,43 @@ class Fault:
 # ------------------------------------------------------------ supervision
 
 
-class Mode(enum.StrEnum):
-    """The vessel's modes; one supervisor owns the current one.
-
-    ``idle`` zero thrust; ``manual`` the operator's U1, U2 for a lease;
-    ``lines`` line tracking along a mission; ``follow`` following the AUV;
-    ``hold`` station keeping at a point; ``return`` go home, then hold.
-    """
-
-    IDLE = "idle"
-    MANUAL = "manual"
-    LINES = "lines"
-    FOLLOW = "follow"
-    HOLD = "hold"
-    RETURN = "return"
-
-
-#: modes in which the vessel moves on its own (navigation failsafes apply)
-UNDER_WAY = frozenset({Mode.LINES, Mode.FOLLOW, Mode.HOLD, Mode.RETURN})
-
-
 @dataclass(slots=True)
 class Command:
     """An operator's (or a script's) command to the supervisor.
 
     ``id`` is chosen by the sender and echoed in the acknowledgement;
     ``source`` says who sent it (``local``, ``scenario``, ``shore:<user>``,
-    ``mavlink:<system id>``).  ``name`` and ``args`` follow the shore protocol:
-    ``stop {}``, ``mode {"mode": "hold", "lat_deg"?, "lon_deg"?}``,
-    ``mission {"waypoints": [[lat_deg, lon_deg], ...], "speed_mps", "start"}``,
-    ``follow {}``, ``thrust {"u1", "u2"}`` (manual mode; renews the lease),
-    ``resume {}``, ``arm {}``, ``disarm {}``.
+    ``mavlink:<system id>``).  ``name`` is the command and ``args`` its typed,
+    bounded arguments (:mod:`zarco_core.commands`: ``decode(name, payload)``
+    builds them from what a link received, or refuses it).
     """
 
     t: float
     id: str
     source: str
     name: str
-    args: dict[str, object] = field(default_factory=dict)
+    args: CommandArgs
+
+
+#: a parameter's value: a number, a flag, a word (one of its choices) or a list of
+#: [lat_deg, lon_deg] points (the geofence polygon)
+ParamValue = float | int | bool | str | list[list[float]]
+
+
+@dataclass(slots=True)
+class ParamChange:
+    """A parameter of the running configuration changed: the supervisor accepted
+    a ``param`` command.  ``name`` is the dotted configuration key
+    (``failsafe.link_lost_s``), ``value`` the new value and ``old`` the one it
+    replaced, ``source`` and ``id`` those of the command.  Recorded, and applied
+    again by ``zarco log replay``."""
+
+    t: float
+    name: str
+    value: ParamValue
+    old: ParamValue
+    source: str = ""
+    id: str = ""
 
 
 @dataclass(slots=True)
@@ -336,7 +340,8 @@ class CommandAck:
 @dataclass(slots=True)
 class Event:
     """Something an operator should know, in words: ``kind`` is ``mode``,
-    ``failsafe``, ``ack``, ``fault``, ``component`` or ``mission``."""
+    ``arming``, ``failsafe``, ``ack``, ``param``, ``fault``, ``component`` or
+    ``mission``."""
 
     t: float
     kind: str
@@ -403,12 +408,17 @@ class VesselStatus:
     """The 1 Hz status snapshot: the single source for ``zarco run --status``,
     HIL and the shore link's health.
 
-    ``utc_s`` is UTC seconds since the epoch at ``t``; ``failsafes`` the active
-    failsafe conditions; ``components`` maps a component to its state and
-    restart count; ``counters`` gathers the control loop's and the bus's;
-    ``home_lat_deg``/``home_lon_deg`` where ``return`` goes (None: not known
-    yet).  Published once a second and at once on every change of mode or of
-    the active failsafes.
+    ``utc_s`` is UTC seconds since the epoch at ``t``; ``armed`` whether the
+    supervisor lets the thrusters turn (``arm``; a disarmed boat never moves);
+    ``failsafes`` the active failsafe conditions; ``components`` maps a
+    component to its state and restart count; ``counters`` gathers the control
+    loop's and the bus's; ``home_lat_deg``/``home_lon_deg`` where ``return``
+    goes (None: not known yet); ``mission_points`` the waypoints
+    ([lat_deg, lon_deg]) of the lines mission loaded or running (empty: none,
+    or cleared) and ``mission_id`` a number that changes whenever they do
+    (the MAVLink endpoint serves its mission from these, never a copy of its
+    own).  Published once a second and at once on every change of mode, of
+    arming, of the loaded mission or of the active failsafes.
     """
 
     t: float
@@ -423,6 +433,8 @@ class VesselStatus:
     reason: str = ""
     home_lat_deg: float | None = None
     home_lon_deg: float | None = None
+    mission_points: tuple[tuple[float, float], ...] = ()
+    mission_id: int = 0
 
 
 @dataclass(slots=True)

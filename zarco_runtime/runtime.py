@@ -35,6 +35,7 @@ from zarco_runtime.navigation.task import Navigation
 from zarco_runtime.sd_notify import Notifier, devices_opened
 from zarco_runtime.settings import RuntimeConfig
 from zarco_runtime.supervision.local import ControlSocket
+from zarco_runtime.supervision.state_file import StateFile
 from zarco_runtime.supervision.supervisor import Boot, Capabilities, Supervisor
 from zarco_runtime.tracking.task import Tracking
 
@@ -86,6 +87,8 @@ class Runtime:
         self.buoy = NmeaDevice("buoy", dev.buoy, self.bus, self.clock,
                                lambda line, t: parse_buoy(line, t, "buoy"), self.ports)
         self._thrusters: ThrusterDriver | None = None
+        #: the supervisor's state file, kept across its restarts
+        self.state_file = StateFile(cfg.supervisor.state_file)
         self.components: list[Supervised] = []
         add = self._add
         # the links are imported only when enabled (zenoh, pymavlink and mcap are
@@ -109,7 +112,7 @@ class Runtime:
         add("supervisor", self._make_supervisor)
         if cfg.supervisor.control_socket:
             add("local", lambda ctx: ControlSocket(cfg.supervisor.control_socket, self.bus,
-                                                   self.clock, ctx.listen))
+                                                   self.clock, ctx.listen, cfg))
         if cfg.mavlink.enabled:
             from zarco_runtime.links.mavlink.endpoint import MavlinkEndpoint
 
@@ -173,14 +176,14 @@ class Runtime:
         return self.live.tracking
 
     def _make_control(self, ctx: ComponentContext) -> Runnable:
-        self.live.control = ControlTask(self.cfg, self.bus, self.clock)
+        self.live.control = ControlTask(self.cfg, self.bus, self.clock, listen=ctx.listen)
         return self.live.control
 
     def _make_supervisor(self, ctx: ComponentContext) -> Runnable:
         follow = frozenset({"buoy", "tracking"})
         self.live.supervisor = Supervisor(self.cfg, self.bus, self.clock, ctx, self.boot,
                                           self.caps, self.counters, CONTROL_PATH | follow,
-                                          self.component_states)
+                                          self.component_states, self.state_file)
         # a supervisor restarted after a failure boots idle: no second autostart
         self.boot = Boot(self.boot.mission, autostart=False)
         return self.live.supervisor

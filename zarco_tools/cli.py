@@ -10,7 +10,6 @@ run`` never loads this module.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -18,35 +17,6 @@ from typing import Any
 
 def _fmt(v: Any, unit: str = "m") -> str:
     return f"{v:.3f} {unit}" if isinstance(v, (int, float)) else str(v)
-
-
-def follow_summary(report: dict[str, Any]) -> str:
-    """One screen of a follow-the-AUV run."""
-    lines = [
-        f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
-        f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "
-        f"= {report['speedup']:.0f}× real time",
-        f"passive fixes: {report['fixes']}, median interval "
-        f"{_fmt(report['fix_interval_s'], 's')}, "
-        f"error RMS {_fmt(report['fix_error_rms_m'])}; track error RMS "
-        f"{_fmt(report['track_error_rms_m'])}",
-        f"AUV course error RMS (straight legs) {_fmt(report['course_error_rms_deg'], '°')}",
-        f"ASV–AUV distance: median {_fmt(report['distance_median_m'])}  "
-        f"p95 {_fmt(report['distance_p95_m'])}  max {_fmt(report['distance_max_m'])}",
-        f"track lost {report['track_lost_events']} times; longest without a usable track "
-        f"{_fmt(report.get('lost_max_s'), 's')}",
-        "",
-        " turn at   angle   detect     recovery   max distance",
-    ]
-
-    def f(v: Any, fmt: str) -> str:
-        return format(v, fmt) if isinstance(v, (int, float)) else "   —  "
-
-    for tr in report["turns"]:
-        lines.append(f" {tr['t_s']:7.1f}  {f(tr.get('angle_deg'), '5.0f')}°  "
-                     f"{f(tr['detect_s'], '6.1f')} s  {f(tr['recovery_s'], '6.1f')} s  "
-                     f"{f(tr['distance_max_m'], '7.2f')} m")
-    return "\n".join(lines)
 
 
 def hold_summary(report: dict[str, Any]) -> str:
@@ -74,6 +44,8 @@ def summary(report: dict[str, Any]) -> str:
                 f"wall = {report['speedup']:.0f}× real time")
         return "\n".join(x for x in (head, hold) if x)
     if "xtrack_rms_m" not in report:
+        from zarco_tools.follow_report import follow_summary
+
         return "\n".join(x for x in (follow_summary(report), hold) if x)
     lines = [
         f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
@@ -106,42 +78,44 @@ def _cell(v: float | None, digits: int) -> str:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
+    from zarco_tools.run_outputs import RunOutputs
     from zarco_tools.scenario import load_scenario
     from zarco_tools.simulation import StatusLine, run_scenario
 
     scn = load_scenario(args.scenario, args.set, args.seed)
+    out = RunOutputs.check(args.report, args.plot, args.record)  # before the run
     status = None if args.quiet else StatusLine()
     try:
         if args.realtime:
             print(f"zarco sim: {scn.scenario.name} running in real time (links as configured); "
                   "SIGTERM or Ctrl-C ends it", file=sys.stderr, flush=True)
-        res = run_scenario(scn, progress=status, realtime=args.realtime, record=args.record)
+        res = run_scenario(scn, progress=status, realtime=args.realtime,
+                           record=str(out.record) if out.record else None)
     finally:
         if status is not None:
             status.close()
-    if args.report:
-        Path(args.report).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.report).write_text(json.dumps(res.report, indent=2) + "\n")
-    if args.plot:
+    out.write_report(res.report)
+
+    def draw(path: Path) -> None:
         from zarco_tools.plot import plot_follow, plot_lines
 
-        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        title = f"{scn.scenario.name}: seed {scn.scenario.seed}, "
         if scn.mission.kind == "follow":
-            plot_follow(args.plot, res.log, res.extra,
-                        f"{scn.scenario.name}: seed {scn.scenario.seed}, distance median "
-                        f"{_fmt(res.report['distance_median_m'])}")
+            plot_follow(path, res.log, res.extra,
+                        title + f"distance median {_fmt(res.report['distance_median_m'])}")
         else:
-            plot_lines(args.plot, res.log, res.legs,
-                       f"{scn.scenario.name}: seed {scn.scenario.seed}, "
-                       f"RMS {res.report['xtrack_rms_m']:.3f} m")
+            plot_lines(path, res.log, res.legs,
+                       title + f"RMS {_fmt(res.report.get('xtrack_rms_m'))}")
+
+    out.write_plot(draw)
+    out.recorded(res.extra.get("record_paths", []), res.extra.get("record_error"))
     print(summary(res.report))
-    if args.report:
-        print(f"\nreport: {args.report}")
-    if args.plot:
-        print(f"plot:   {args.plot}")
-    if args.record:
-        print(f"record: {args.record}")
-    return 0
+    if out.written:
+        print()
+        print("\n".join(out.written))
+    for line in out.failed:
+        print(f"zarco sim: {line}", file=sys.stderr)
+    return 1 if out.failed else 0
 
 
 def _positive_hz(text: str) -> float:

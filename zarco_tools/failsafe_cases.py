@@ -101,7 +101,7 @@ CASES: list[Case] = [
          FAULT_AT_S + 10, "idle", "the thruster controller stops answering"),
     Case("thruster_silent", "rectangle.toml", [],
          [FaultSpec(kind="silence", device="thrusters", at_s=0.0, duration_s=1e5)], [],
-         30.0, "idle", "the thruster controller never answered"),
+         30.0, "disarmed", "the thruster controller never answered: the boat never arms"),
     Case("position_lost", "rectangle.toml", [], [_fault("silence", "gps", dur=40.0)], [],
          FAULT_AT_S + 20, "idle", "the GPS goes silent (dead reckoning for position_lost_s)"),
     Case("link_lost", "rectangle.toml", ["runtime.failsafe.link_lost_s=5.0"], [],
@@ -135,6 +135,8 @@ def measure(case: Case, seed: int = 1) -> dict[str, Any]:
     ev = res.extra["events"]
     fs = next((e for e in ev if e.kind == "failsafe" and e.text.startswith(case.name + ":")),
               None)
+    if case.expect == "disarmed":
+        return _never_armed(case, scn, res, fs, seed)
     action_ev = None
     if fs is not None:
         action_ev = next((e for e in ev if e.kind == "mode" and e.t >= fs.t
@@ -170,6 +172,25 @@ def measure(case: Case, seed: int = 1) -> dict[str, Any]:
         "action": action_mode,
         "expected": case.expect,
         "ok": action_ev is not None and action_mode == case.expect,
+    }
+
+
+def _never_armed(case: Case, scn: Scenario, res: Any, fs: Any, seed: int) -> dict[str, Any]:
+    """A fault from the start: the failsafe must enter (disarmed), ``mission.autostart``
+    must never arm, and the thrusters never get a non-zero command."""
+    armed = any(d.armed for d in res.extra["directives"])
+    moved = any(d == "thrusters" and what == "thrust" for _t, d, what in res.extra["sim_events"])
+    first_cmd = 1.0 / scn.runtime.control.rate_hz  # the first command: the first tick
+    return {
+        "failsafe": case.name, "seed": seed, "note": case.note,
+        "configured_delay_s": _delay(case, scn),
+        "onset_s": _r(first_cmd),
+        "action_s": _r(fs.t) if fs else None,
+        "condition_to_action_s": _r(fs.t - first_cmd) if fs else None,
+        "condition_to_zero_thrust_s": 0.0 if not moved else None,
+        "action": "disarmed" if not armed else "armed",
+        "expected": case.expect,
+        "ok": fs is not None and not armed and not moved,
     }
 
 

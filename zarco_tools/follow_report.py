@@ -4,25 +4,35 @@
 * ``fix_error_rms_m``: accepted fixes vs the AUV's true position at emission;
 * ``track_error_rms_m``: the tracker's Kalman filter vs truth;
 * ``course_error_rms_deg``: the RLS course vs the true course, on straight legs
-  from 30 s after each turn;
-* ``turns``: per AUV manoeuvre (turns starting less than ``MERGE_S`` after the
-  previous one, such as a lawnmower's two 90° turns at the end of a leg, count
-  as one), its net course
-  change ``angle_deg`` (positive to starboard) and ``kind`` (``turn`` up to 90°,
-  ``uturn`` beyond), ``detect_s`` (from the start of the manoeuvre until the
-  course error stays under 10°), ``recovery_s`` (from its start until the last
-  time, before the next manoeuvre and up to 60 s after its last turn, that the
-  ASV–AUV horizontal distance exceeds 3 m, after which it must stay within 3 m
-  for 10 s; 0 if it never exceeded 3 m; None if it did not recover) and
-  ``distance_max_m`` (from its start to the next manoeuvre);
-* ``distance_median_m``, ``distance_p95_m`` on straight legs from 60 s after
-  each manoeuvre (and after the AUV starts moving), ``distance_max_m`` over the
-  whole run;
+  from 30 s after each manoeuvre;
+* ``acquired_s``: acquisition, the first time the follow guidance steers by
+  the AUV's track (the supervisor's "AUV acquired; following"); None if never;
+* ``distance_median_m``, ``distance_p95_m``, ``distance_max_m``: the ASV–AUV
+  horizontal distance over the whole followed time, from acquisition to the
+  end of the run (the approach, every turn, every loss included);
+* ``settled_distance_median_m``, ``settled_distance_p95_m``: the same on
+  straight legs only, leaving out the minute after each manoeuvre (and after
+  the AUV starts moving);
+* ``turns``: per AUV manoeuvre (leg switches less than 30 s after the previous
+  one, such as a lawnmower's two 90° turns at the end of a leg, count as one;
+  a continuous turn is one manoeuvre however far it turns) its start ``t_s``
+  and end ``end_s``, net course change ``angle_deg`` (positive to starboard),
+  ``kind`` (``turn`` up to 90°, ``uturn`` beyond, ``arc`` a continuous turn:
+  an arc, a circle, a spiral), ``detect_s`` (from its start until the course
+  error stays under 10°), ``distance_max_m`` (from its start to the next
+  manoeuvre) and ``recovery_s`` (from its start until the ASV is within 3 m
+  of the AUV and stays so for 10 s; None if it never is):
+  :mod:`zarco_tools.follow_distance`;
 * ``lost_max_s``: the longest time, once the AUV moves, that the ASV was not
   following it (the follow guidance holding: track lost, or the AUV taken for
   still) while the AUV was heard (detected interrogations at most 2.5 s apart);
   ``hold_max_s`` the same whether heard or not, ``fix_gap_max_s`` the longest
-  time without an accepted update.
+  time without an accepted update;
+* ``sound_speed_est_mps``: the tracker's final estimate of the sound speed (the
+  configured value when the tracker keeps it fixed), ``sound_speed_true_mps``
+  the simulated truth, ``sound_speed_configured_mps`` what the tracker was
+  configured with, ``sound_speed_error_max_pct`` the largest
+  |estimate − truth| / truth (%) from 300 s after acquisition to the end.
 
 Every figure that cannot be computed (no turn recovered, no straight leg) is
 None, never NaN: the report is written as JSON.
@@ -36,19 +46,26 @@ from typing import Any
 import numpy as np
 
 from zarco_core.auv_messages import AuvFix, AuvTrack, TrackFlags
+from zarco_tools.follow_distance import (
+    Manoeuvre,
+    manoeuvre_rows,
+    merge_manoeuvres,
+    settled_figures,
+    settled_windows,
+    whole_figures,
+)
 from zarco_tools.sim_report import TrackLog
 
 COURSE_SETTLE_S = 30.0
-DISTANCE_SETTLE_S = 60.0
 DETECT_DEG = 10.0
-RECOVER_M = 3.0
-RECOVER_HOLD_S = 10.0
-MERGE_S = 30.0
-#: a manoeuvre turning through more than this (deg) is a U-turn
-UTURN_DEG = 91.0
 #: the AUV counts as heard while its detected interrogations are no further
 #: apart than this (s; it pings every 1–2 s, so a longer silence is missed pings)
 HEARD_GAP_S = 2.5
+#: the sound-speed estimate is judged from this long after acquisition (s)
+SOUND_SPEED_SETTLE_S = 300.0
+#: the AUV counts as moving between true-track samples 0.1 s apart when it
+#: moved more than this (m): 0.2 m/s
+MOVING_STEP_M = 0.02
 
 
 def finite_or_none(v: Any) -> Any:
@@ -67,37 +84,8 @@ def _num(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
-def _windows(starts: list[float], stops: list[float], end: float,
-             settle: float) -> list[tuple[float, float]]:
-    """Straight-leg windows: from ``settle`` after each start (the end of a
-    manoeuvre) to the next stop (the start of the next one)."""
-    out = []
-    for i, s in enumerate(starts):
-        e = stops[i] if i < len(stops) else end
-        if s + settle < e:
-            out.append((s + settle, e))
-    return out
-
-
 def _inside(t: float, wins: list[tuple[float, float]]) -> bool:
     return any(a <= t < b for a, b in wins)
-
-
-def manoeuvres(turn_angles: list[tuple[float, float]], t_end: float
-               ) -> list[tuple[float, float, float]]:
-    """Leg switches (time s, signed angle rad) before ``t_end`` merged into
-    manoeuvres: (start s, end s, net angle rad); switches within ``MERGE_S`` of
-    the previous one join its manoeuvre."""
-    out: list[list[float]] = []
-    for t, a in turn_angles:
-        if t >= t_end:
-            continue
-        if out and t - out[-1][1] <= MERGE_S:
-            out[-1][1] = t
-            out[-1][2] += a
-        else:
-            out.append([t, t, a])
-    return [(a, b, c) for a, b, c in out]
 
 
 def _longest(t: np.ndarray, bad: np.ndarray) -> float:
@@ -129,18 +117,46 @@ def _longest_counted(t: np.ndarray, bad: np.ndarray, count: np.ndarray) -> float
     return best
 
 
+def acquisition_time(modes: list[tuple[float, str]]) -> float | None:
+    """The first time (s) the follow guidance steered by the AUV's track
+    (phase ``follow`` of the guidance modes ``(t, mode)``), or None."""
+    return next((t for t, m in modes if m == "follow:follow"), None)
+
+
+def sound_speed_figures(tracks: list[AuvTrack], configured: float, true: float,
+                        acquired_s: float | None) -> dict[str, float]:
+    """The tracker's final sound-speed estimate (the configured value when its
+    tracks carry none), the truth, and the largest relative error (%) from
+    ``SOUND_SPEED_SETTLE_S`` after acquisition on (NaN when the run ended
+    before, or never acquired)."""
+
+    def est(tr: AuvTrack) -> float:
+        v = getattr(tr, "sound_speed_mps", math.nan)
+        return float(v) if isinstance(v, (int, float)) and math.isfinite(v) else configured
+
+    final = est(tracks[-1]) if tracks else configured
+    err = math.nan
+    if acquired_s is not None:
+        late = [abs(est(tr) - true) / true * 100.0 for tr in tracks
+                if tr.t >= acquired_s + SOUND_SPEED_SETTLE_S]
+        err = max(late) if late else math.nan
+    return {"sound_speed_est_mps": final, "sound_speed_true_mps": true,
+            "sound_speed_configured_mps": configured, "sound_speed_error_max_pct": err}
+
+
 def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
+    """The figures of the module's docstring, from the true-track ``log`` and
+    the simulation's ``counters`` (the acoustic world, the tracker's messages,
+    the guidance modes, the runtime)."""
     acoustics = counters["acoustics"]
     auv = acoustics.auv
     msgs = counters.get("auv_msgs", [])
     auv_log = counters.get("auv_log", [])
     t_end = log.t[-1] if log.t else 0.0
-    man = manoeuvres(auv.turn_angles(), t_end)
-    turns = [m[0] for m in man]
-    turn_ends = [m[1] for m in man]
+    man = merge_manoeuvres([Manoeuvre(m.start_s, m.end_s, m.angle_rad, m.arc)
+                            for m in auv.manoeuvres()], t_end)
     move_start = float(auv.params.start_delay_s)
-    # straight legs start after the last turn of each manoeuvre
-    starts = [move_start, *turn_ends]
+    acquired = acquisition_time(counters.get("guidance_modes", []))
 
     fixes = [m for m in msgs if isinstance(m, AuvFix) and m.accepted and not m.range_only]
     updates = sorted(acoustics.sim_time(m.emission_utc_s) for m in msgs
@@ -164,52 +180,28 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
             course_t.append(tr.t)
             course_err.append(abs(math.degrees(math.remainder(tr.psi_auv_rad - at.psi_rad,
                                                              math.tau))))
-    cwins = _windows(starts, turns, t_end, COURSE_SETTLE_S)
+    cwins = settled_windows(move_start, man, t_end, COURSE_SETTLE_S)
     c_sel = [e for t, e in zip(course_t, course_err, strict=True) if _inside(t, cwins)]
 
     t = np.asarray(log.t)
     dist = np.array([math.hypot(x - a[1], y - a[2])
                      for x, y, a in zip(log.x, log.y, auv_log, strict=False)])
     t = t[: dist.size]
-    dwins = _windows(starts, turns, t_end, DISTANCE_SETTLE_S)
-    moving = np.array([math.hypot(a[1] - b[1], a[2] - b[2]) > 0.02
+    moving = np.array([math.hypot(a[1] - b[1], a[2] - b[2]) > MOVING_STEP_M
                        for a, b in zip(auv_log[1:], auv_log[:-1], strict=True)] + [False])
     moving = moving[: dist.size]
-    dsel = np.array([d for tt, d, mv in zip(t, dist, moving, strict=True)
-                     if mv and _inside(float(tt), dwins)])
 
-    turn_rows = []
-    for i, (ts, te, ang) in enumerate(man):
-        nxt = turns[i + 1] if i + 1 < len(turns) else t_end
+    turn_rows: list[dict[str, Any]] = []
+    for m, row in zip(man, manoeuvre_rows(t, dist, man, t_end), strict=True):
+        nxt = m.start_s + float(row["window_s"])
         detect = math.nan
-        after = [(tt, e) for tt, e in zip(course_t, course_err, strict=True) if ts <= tt < nxt]
+        after = [(tt, e) for tt, e in zip(course_t, course_err, strict=True)
+                 if m.start_s <= tt < nxt]
         for j, (tt, _e) in enumerate(after):
             if all(e2 < DETECT_DEG for _t2, e2 in after[j:]):
-                detect = tt - ts
+                detect = tt - m.start_s
                 break
-        recovery = math.nan
-        sel = (t >= ts) & (t < nxt)
-        tt_a, dd_a = t[sel], dist[sel]
-        if tt_a.size:
-            # the last time the ASV was more than RECOVER_M away, before the next
-            # manoeuvre and up to DISTANCE_SETTLE_S after this one's last turn;
-            # from then it must stay within RECOVER_M for RECOVER_HOLD_S (which
-            # may run into the next manoeuvre)
-            over = (dd_a > RECOVER_M) & (tt_a < te + DISTANCE_SETTLE_S)
-            if not over.any():
-                recovery = 0.0
-            else:
-                t_last = float(tt_a[over].max())
-                hold = (t > t_last) & (t <= t_last + RECOVER_HOLD_S)
-                if t_last + RECOVER_HOLD_S <= t[-1] and np.all(dist[hold] <= RECOVER_M):
-                    recovery = t_last - ts
-        dmax_turn = float(dd_a.max()) if dd_a.size else math.nan
-        deg = math.degrees(ang)
-        turn_rows.append({"t_s": round(ts, 1), "angle_deg": round(deg, 1),
-                          "kind": "uturn" if abs(deg) > UTURN_DEG else "turn",
-                          "detect_s": _num(detect), "recovery_s": _num(recovery),
-                          "distance_max_m": _num(dmax_turn),
-                          "window_s": round(nxt - ts, 1)})
+        turn_rows.append({**row, "detect_s": _num(detect)})
 
     # lost: the longest time, once the AUV moves, without an accepted update or
     # with the track declared lost
@@ -237,18 +229,70 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
     def rms(v: list[float]) -> float:
         return float(np.sqrt(np.mean(np.square(v)))) if v else math.nan
 
-    return finite_or_none({
+    runtime = counters.get("runtime")
+    configured = (float(runtime.cfg.tracker.network.sound_speed_mps) if runtime is not None
+                  else float(acoustics.c))
+    figures: dict[str, Any] = finite_or_none({
         "fix_interval_s": fix_interval,
         "fixes": len(fixes),
         "fix_error_rms_m": rms(ferr),
         "track_error_rms_m": rms(terr),
         "course_error_rms_deg": rms(c_sel),
         "turns": turn_rows,
-        "distance_median_m": float(np.median(dsel)) if dsel.size else math.nan,
-        "distance_p95_m": float(np.percentile(dsel, 95)) if dsel.size else math.nan,
-        "distance_max_m": float(dist.max()) if dist.size else math.nan,
+        "acquired_s": acquired if acquired is not None else math.nan,
+        **whole_figures(t, dist, acquired),
+        **settled_figures(t, dist, moving, acquired,
+                          settled_windows(move_start, man, t_end)),
+        **sound_speed_figures(tracks, configured, float(acoustics.c), acquired),
         "track_lost_events": sum(1 for tr in tracks if tr.lost),
         "fix_gap_max_s": round(gap, 2),
         "hold_max_s": round(hold, 2),
         "lost_max_s": round(lost, 2),
     })
+    return figures
+
+
+def _fmt(v: Any, unit: str = "m", digits: int = 3) -> str:
+    return f"{v:.{digits}f} {unit}" if isinstance(v, (int, float)) else "—"
+
+
+def follow_summary(report: dict[str, Any]) -> str:
+    """One screen of a follow-the-AUV run, each figure labelled with what it
+    covers."""
+    acq = report.get("acquired_s")
+    lines = [
+        f"scenario {report['scenario']}  seed {report['seed']}  ({report['stop']})",
+        f"simulated {report['sim_seconds']:.1f} s in {report['wall_seconds']:.2f} s wall "
+        f"= {report['speedup']:.0f}× real time",
+        f"passive fixes: {report['fixes']}, median interval "
+        f"{_fmt(report['fix_interval_s'], 's')}, "
+        f"error RMS {_fmt(report['fix_error_rms_m'])}; track error RMS "
+        f"{_fmt(report['track_error_rms_m'])}",
+        f"AUV course error RMS (straight legs) {_fmt(report['course_error_rms_deg'], '°')}",
+        f"ASV–AUV distance, whole run from acquisition "
+        f"({_fmt(acq, 's', 1) if acq is not None else 'never acquired'}) to the end: "
+        f"median {_fmt(report['distance_median_m'])}  p95 {_fmt(report['distance_p95_m'])}  "
+        f"max {_fmt(report['distance_max_m'])}",
+        f"ASV–AUV distance, settled (straight legs, without the minute after each "
+        f"manoeuvre): median {_fmt(report.get('settled_distance_median_m'))}  "
+        f"p95 {_fmt(report.get('settled_distance_p95_m'))}",
+        f"sound speed: tracker's estimate {_fmt(report.get('sound_speed_est_mps'), 'm/s', 1)}"
+        f", true {_fmt(report.get('sound_speed_true_mps'), 'm/s', 1)} (configured "
+        f"{_fmt(report.get('sound_speed_configured_mps'), 'm/s', 1)}); largest error from "
+        f"{SOUND_SPEED_SETTLE_S:.0f} s after acquisition "
+        f"{_fmt(report.get('sound_speed_error_max_pct'), '%', 2)}",
+        f"track lost {report['track_lost_events']} times; longest without a usable track "
+        f"{_fmt(report.get('lost_max_s'), 's')}",
+        "",
+        " turn at  kind     angle   detect     recovery   max distance",
+    ]
+
+    def f(v: Any, fmt: str) -> str:
+        return format(v, fmt) if isinstance(v, (int, float)) else "   —  "
+
+    for tr in report["turns"]:
+        lines.append(f" {tr['t_s']:7.1f}  {tr.get('kind', ''):<6} "
+                     f"{f(tr.get('angle_deg'), '6.0f')}°  "
+                     f"{f(tr['detect_s'], '6.1f')} s  {f(tr['recovery_s'], '6.1f')} s  "
+                     f"{f(tr['distance_max_m'], '7.2f')} m")
+    return "\n".join(lines)

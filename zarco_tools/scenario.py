@@ -45,7 +45,8 @@ class ScriptedCommand:
 
     at_s: float = spec(0.0, "s", "when, seconds after the start", min=0.0, max=1e6)
     name: str = spec("stop", "", "command", choices=["stop", "mode", "mission", "follow",
-                                                     "thrust", "resume", "arm", "disarm"])
+                                                     "thrust", "resume", "arm", "disarm",
+                                                     "param"])
     args: dict[str, Any] = spec(dict, "", "the command's arguments")
 
 
@@ -67,8 +68,14 @@ class Scenario:
 def load_scenario(path: str | Path, overrides: list[str] | None = None,
                   seed: int | None = None) -> Scenario:
     """Read, override and validate a scenario; raises ConfigError naming file and key."""
-    file = str(path)
-    data: dict[str, Any] = load_toml(path)
+    return scenario_from_data(load_toml(path), str(path), overrides, seed)
+
+
+def scenario_from_data(data: dict[str, Any], file: str, overrides: list[str] | None = None,
+                       seed: int | None = None) -> Scenario:
+    """A scenario from its TOML already read (``data``, changed in place by the
+    overrides; ``file`` names it in errors), as :func:`load_scenario`: what a
+    campaign's worker runs without the file."""
     if overrides:
         apply_overrides(data, overrides, file=f"{file} (--set)")
     scn = build(Scenario, data, file)

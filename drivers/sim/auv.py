@@ -1,4 +1,5 @@
-"""A simulated AUV flying straight lines between waypoints (paper V's motion model).
+"""A simulated AUV flying straight lines between waypoints (paper V's motion model),
+and the continuous turns (arcs, circles, spirals) the paper's model leaves out.
 
 Kinematics in the local NED frame (x north, y east, metres; depth positive
 down; heading ψ clockwise from north)::
@@ -15,6 +16,13 @@ and the line-of-sight guidance brings the AUV onto the next line).
 After the last waypoint the AUV hovers there (``at_end = "stop"``) or keeps its
 course (``"continue"``).  Before ``start_delay_s`` it hovers at the first
 waypoint, pointing at the second.
+
+A waypoint may carry a continuous turn (``arcs``): on reaching it (no
+anticipation) the AUV turns at constant speed with radius
+R(θ) = R₀ + g·θ/360°, θ the angle turned so far (g = 0: an arc of a circle;
+g ≠ 0: a spiral), the yaw rate v/R(θ) clamped to ω_max, until it has turned
+through the arc's angle; then it flies on from where it is to the next
+waypoint (a draw places that waypoint along the exit course).
 
 Lines may be defined on the fly: :meth:`Auv.append_waypoint` and
 :meth:`Auv.set_waypoints`.  Motion is integrated ahead of the queries (the
@@ -56,6 +64,10 @@ class AuvParams:
     at_end: str = spec("stop", "", "after the last waypoint: hover there or keep the "
                        "course", choices=list(AT_END))
     dt_s: float = spec(0.05, "s", "integration step", min=0.001, max=1.0)
+    arcs: list[list[float]] = spec(
+        [], "", "continuous turns flown on reaching a waypoint: [waypoint index, radius m, "
+        "angle deg (+ to starboard), radius growth m per 360°] each (growth 0: an arc of a "
+        "circle; otherwise a spiral)")
 
     def validate(self) -> None:
         if not self.waypoints:
@@ -63,6 +75,44 @@ class AuvParams:
         for i, w in enumerate(self.waypoints):
             if len(w) != 2 or not all(math.isfinite(v) for v in w):
                 raise ValueError(f"waypoints: waypoint {i} must be [north, east], got {w}")
+        seen: set[int] = set()
+        for i, a in enumerate(self.arcs):
+            if len(a) != 4 or not all(math.isfinite(v) for v in a):
+                raise ValueError(f"arcs: arc {i} must be [waypoint index, radius m, angle deg, "
+                                 f"growth m per 360°], got {a}")
+            k, radius, angle, growth = a
+            if k != int(k) or not 1 <= int(k) < len(self.waypoints):
+                raise ValueError(f"arcs: arc {i}: waypoint index must be an integer in 1.."
+                                 f"{len(self.waypoints) - 1}, got {k}")
+            if int(k) in seen:
+                raise ValueError(f"arcs: arc {i}: waypoint {int(k)} already has an arc")
+            seen.add(int(k))
+            if not 1.0 <= radius <= 10_000.0:
+                raise ValueError(f"arcs: arc {i}: radius must be in 1..10000 m, got {radius}")
+            if not 1.0 <= abs(angle) <= 3600.0:
+                raise ValueError(f"arcs: arc {i}: |angle| must be in 1..3600°, got {angle}")
+            end_radius = radius + growth * abs(angle) / 360.0
+            if not 1.0 <= end_radius <= 10_000.0:
+                raise ValueError(f"arcs: arc {i}: the radius at the arc's end must be in "
+                                 f"1..10000 m, got {end_radius:.1f}")
+
+
+@dataclass(frozen=True, slots=True)
+class AuvManoeuvre:
+    """A course change of the AUV: from ``start_s`` to ``end_s`` (sim s), through
+    ``angle_rad`` (signed, + to starboard).  A leg switch (``arc`` false) is an
+    instant (start = end, the angle between the planned legs; the finite-rate
+    turn follows it); an arc is a continuous turn, start to end."""
+
+    start_s: float
+    end_s: float
+    angle_rad: float
+    arc: bool
+
+
+#: a leg switch after an arc counts as a turn only when the new leg's course is
+#: at least this far (deg) from the course the arc ended on
+ARC_EXIT_TURN_DEG = 5.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,6 +164,14 @@ class Auv:
         self._legs = [self.leg]
         #: (grid time s, signed course change rad, + to starboard) of each leg switch
         self._turns: list[tuple[float, float]] = []
+        self._manoeuvres: list[AuvManoeuvre] = []
+        #: continuous turns by waypoint index: (radius m, angle rad signed, growth m/rad)
+        self._arc_at = {int(a[0]): (float(a[1]), math.radians(a[2]), float(a[3]) / math.tau)
+                        for a in params.arcs}
+        #: the arc being flown: [start s, radius m, angle rad signed, growth m/rad,
+        #: turned rad]; None on a line
+        self._arc: list[float] | None = None
+        self._after_arc = False
 
     # ---------------------------------------------------- lines on the fly
 
@@ -152,7 +210,9 @@ class Auv:
         d = -(x - x0) * uy + (y - y0) * ux
         psi_leg = math.atan2(uy, ux)
         left = length - along
-        if self.leg + 1 < len(self.wps):
+        if self.leg in self._arc_at:
+            switch = left <= 0.0
+        elif self.leg + 1 < len(self.wps):
             (x2, y2) = self.wps[self.leg + 1]
             turn = abs(_wrap(math.atan2(y2 - y1, x2 - x1) - psi_leg))
             radius = self.v / self.omega if self.omega > 0.0 else 0.0
@@ -175,13 +235,28 @@ class Auv:
         if t + 1e-9 < p.start_delay_s or self.stopped:
             self._append(x, y, psi, 0.0)
             return
+        if self._arc is not None:
+            self._arc_step(t, x, y, psi)
+            return
         psi_d, switch = self._desired(x, y)
+        if self._after_arc:
+            switch = True  # the arc at this leg's waypoint is flown: on to the next
+        elif switch and self.leg in self._arc_at:
+            radius, angle, growth = self._arc_at[self.leg]
+            self._arc = [t, radius, angle, growth, 0.0]
+            self._after_arc = True
+            self._arc_step(t, x, y, psi)
+            return
         if switch:
             if self.leg + 1 < len(self.wps):
-                before = self._leg_course()
-                self._leg_start = self.wps[self.leg]
+                before = psi if self._after_arc else self._leg_course()
+                self._leg_start = (x, y) if self._after_arc else self.wps[self.leg]
                 self.leg += 1
-                self._turns.append((t + dt, _wrap(self._leg_course() - before)))
+                turn = _wrap(self._leg_course() - before)
+                if not self._after_arc or abs(turn) >= math.radians(ARC_EXIT_TURN_DEG):
+                    self._turns.append((t + dt, turn))
+                    self._manoeuvres.append(AuvManoeuvre(t + dt, t + dt, turn, False))
+                self._after_arc = False
                 psi_d, _ = self._desired(x, y)
             elif p.at_end == "stop":
                 self.stopped = True
@@ -194,6 +269,27 @@ class Auv:
         v = self.v
         self._append(x + v * math.cos(psi_mid) * dt, y + v * math.sin(psi_mid) * dt,
                      _wrap(psi + rate * dt), v)
+
+    def _arc_step(self, t: float, x: float, y: float, psi: float) -> None:
+        """One step of the continuous turn being flown (its last step turns only
+        what is left of its angle); at its end the AUV flies on to the next
+        waypoint from where it is."""
+        arc = self._arc
+        assert arc is not None
+        t0, radius, angle, growth, turned = arc
+        dt = self.dt
+        v = self.v
+        r_now = radius + growth * turned
+        rate = min(v / max(r_now, 1e-6), self.omega) if self.omega > 0.0 else 0.0
+        step = min(rate * dt, abs(angle) - turned)
+        signed = math.copysign(step, angle)
+        psi_mid = psi + 0.5 * signed
+        self._append(x + v * math.cos(psi_mid) * dt, y + v * math.sin(psi_mid) * dt,
+                     _wrap(psi + signed), v)
+        arc[4] = turned + step
+        if arc[4] >= abs(angle) - 1e-12:
+            self._arc = None
+            self._manoeuvres.append(AuvManoeuvre(t0 + dt, t + dt, angle, True))
 
     def _append(self, x: float, y: float, psi: float, v: float) -> None:
         self._x.append(x)
@@ -231,6 +327,18 @@ class Auv:
         leg switch so far: the same times as :meth:`turn_times`, with the angle
         between the planned legs (what the AUV turns through)."""
         return list(self._turns)
+
+    def manoeuvres(self) -> list[AuvManoeuvre]:
+        """Every course change so far, in time order: the leg switches of
+        :meth:`turn_angles` and the continuous turns (arcs, circles, spirals);
+        an arc still being flown ends where the integration has got to, with
+        the angle turned so far."""
+        out = list(self._manoeuvres)
+        if self._arc is not None:
+            t0, _r, angle, _g, turned = self._arc
+            out.append(AuvManoeuvre(t0 + self.dt, (len(self._x) - 1) * self.dt,
+                                    math.copysign(turned, angle), True))
+        return out
 
     def truth(self, t_s: float) -> AuvTruth:
         """The full true state at ``t_s`` ≥ 0 (heading and speed of the step

@@ -49,7 +49,7 @@ from zarco_core.angles import wrap
 from zarco_core.messages import NavState
 from zarco_core.vessel import VesselModel
 from zarco_runtime.control.allocation import Allocation
-from zarco_runtime.control.lqr import GainSchedule
+from zarco_runtime.control.lqr import GainSchedule, design_schedule
 from zarco_runtime.control.settings import Control, xtrack_rate_tau_s
 from zarco_runtime.control.water_observer import WaterObserver
 from zarco_runtime.guidance.mission import Leg
@@ -77,15 +77,18 @@ class LineController:
     """Steering + speed control along the active leg."""
 
     def __init__(self, vm: VesselModel, ctl: Control, lag_s: float, dt: float,
-                 rate_tau_s: float | None = None) -> None:
+                 rate_tau_s: float | None = None, schedule: GainSchedule | None = None) -> None:
         """``rate_tau_s``: low-pass of the GPS part of the cross-track rate (s);
-        None: :func:`~zarco_runtime.settings.xtrack_rate_tau_s` for the first estimate."""
+        None: :func:`~zarco_runtime.settings.xtrack_rate_tau_s` for the first estimate.
+        ``schedule``: the LQR gain schedule to use (None: this configuration's,
+        from the cache or designed now)."""
         self.vm = vm
         self.ctl = ctl
         self.tau_r = rate_tau_s if rate_tau_s is not None else xtrack_rate_tau_s(ctl)
         self.dt = dt
         self.lag_s = lag_s
-        self.schedule = GainSchedule(vm, ctl, lag_s, dt)
+        self.schedule = schedule if schedule is not None else \
+            design_schedule(vm, ctl, lag_s, dt)
         self.water = WaterObserver(vm, lag_s, estimate_mismatch=ctl.mismatch_compensation)
         self.l_int = 0.0
         self.u_int = 0.0

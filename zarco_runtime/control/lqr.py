@@ -23,13 +23,22 @@ needs some 20° of heading).  The observer estimates w
 
 Discretised with a zero-order hold at the control period; the discrete
 algebraic Riccati equation is solved by the structured doubling algorithm
-(quadratic convergence, ~20 iterations of 6×6 matrices).
+(quadratic convergence, ~20 iterations of 7×7 matrices).
+
+A schedule (eleven designs) takes some 20 ms to solve, too long for a
+control tick, so schedules are cached per configuration (the vessel's
+steering model, the thruster lag, the control period and the LQR weights):
+:func:`design_schedule` solves one (or returns it from the cache) and
+:func:`cached_schedule` only looks; the control task designs at start and,
+after a weight changes, off the tick.
 """
 
 from __future__ import annotations
 
 import bisect
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,14 +140,28 @@ def design(u_mps: float, vm: VesselModel, ctl: Control, lag_s: float, dt: float)
     return SteeringGains(u_mps, tuple(float(x) for x in k))  # type: ignore[arg-type]
 
 
+#: the speeds (m/s) of the schedule's designs
+SPEEDS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.8)
+#: schedules kept (a few configurations: the one running and those tried)
+CACHE_SIZE = 16
+
+
 class GainSchedule:
     """LQR gains on a speed grid, linearly interpolated at run time."""
 
     def __init__(self, vm: VesselModel, ctl: Control, lag_s: float, dt: float,
-                 speeds: tuple[float, ...] = (0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.4,
-                                              1.6, 1.8)) -> None:
+                 speeds: tuple[float, ...] = SPEEDS) -> None:
         self.speeds = speeds
         self.gains = [design(u, vm, ctl, lag_s, dt) for u in speeds]
+
+    @staticmethod
+    def key(vm: VesselModel, ctl: Control, lag_s: float, dt: float,
+            speeds: tuple[float, ...] = SPEEDS) -> tuple[float, ...]:
+        """Everything a schedule depends on (two configurations with the same key
+        have the same gains)."""
+        return (vm.m_kg, vm.y_vdot, vm.iz_kgm2, vm.n_rdot, vm.n_r, vm.y_v, lag_s, dt,
+                ctl.lqr_d_m, ctl.lqr_int_ms, ctl.lqr_psi_deg, ctl.lqr_r_dps, ctl.lqr_v_mps,
+                ctl.lqr_n_nm, *speeds)
 
     def at(self, u_mps: float) -> tuple[float, ...]:
         """Gains K at speed ``u_mps`` (clamped to the grid)."""
@@ -151,3 +174,34 @@ class GainSchedule:
         w = (u_mps - sp[i - 1]) / (sp[i] - sp[i - 1])
         k0, k1 = self.gains[i - 1].k, self.gains[i].k
         return tuple([a + w * (b - a) for a, b in zip(k0, k1, strict=True)])
+
+
+_cache: OrderedDict[tuple[float, ...], GainSchedule] = OrderedDict()
+_cache_lock = threading.Lock()  # designs may finish on a worker thread
+
+
+def cached_schedule(vm: VesselModel, ctl: Control, lag_s: float,
+                    dt: float) -> GainSchedule | None:
+    """The schedule of this configuration if it was designed already (no solving)."""
+    key = GainSchedule.key(vm, ctl, lag_s, dt)
+    with _cache_lock:
+        s = _cache.get(key)
+        if s is not None:
+            _cache.move_to_end(key)
+        return s
+
+
+def design_schedule(vm: VesselModel, ctl: Control, lag_s: float,
+                    dt: float) -> GainSchedule:
+    """The schedule of this configuration: from the cache, or solved now (~20 ms)
+    and cached."""
+    s = cached_schedule(vm, ctl, lag_s, dt)
+    if s is not None:
+        return s
+    key = GainSchedule.key(vm, ctl, lag_s, dt)
+    s = GainSchedule(vm, ctl, lag_s, dt)
+    with _cache_lock:
+        _cache[key] = s
+        while len(_cache) > CACHE_SIZE:
+            _cache.popitem(last=False)
+    return s

@@ -10,32 +10,46 @@ ControlStatus and GuidanceStatus.
 
 The mode is the supervisor's; this task only executes it.  It still refuses,
 on its own, to drive on what it cannot trust: a directive older than
-``supervisor.directive_timeout_s`` counts as ``idle``, an estimate that is
-not valid gives zero thrust, and a demand or command that is not finite
-becomes zero thrust and a Fault.
+``supervisor.directive_timeout_s`` counts as ``idle``, a directive that is
+not armed gives zero thrust whatever its mode, so do a lost position, a lost
+heading and a silent thruster controller (the drive interlock,
+:mod:`.interlock`, judged at every tick with the failsafe table's limits),
+and a demand or command that is not finite becomes zero thrust and a Fault.
+
+The line-tracking gains come from LQR designs cached per configuration
+(:mod:`.lqr`): a mode change takes its design from the cache; a configuration
+not designed yet keeps the previous design while the new one is solved off the
+tick (on a worker thread; at once on the simulator's virtual clock, where it
+costs no time).
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import math
 from typing import TYPE_CHECKING
 
 from zarco_core.angles import wrap
 from zarco_core.auv_messages import AuvPlan, AuvTrack
-from zarco_core.bus import Bus
-from zarco_core.clock import Clock
+from zarco_core.bus import Bus, Listen
+from zarco_core.clock import Clock, VirtualTimeEventLoop
 from zarco_core.messages import (
     ControlStatus,
     Fault,
     GuidanceStatus,
+    Heading,
     Mode,
     NavState,
+    ParamChange,
     ThrusterCommand,
+    ThrusterStatus,
 )
 from zarco_core.thruster_map import ThrusterMap
 from zarco_runtime.control.allocation import ZERO, Allocation, allocate
+from zarco_runtime.control.interlock import DriveInterlock
 from zarco_runtime.control.line_tracking import Demand, LineController
+from zarco_runtime.control.lqr import GainSchedule, cached_schedule, design_schedule
 from zarco_runtime.control.settings import xtrack_rate_tau_s
 from zarco_runtime.guidance.directive import Directive, ManualThrust
 from zarco_runtime.guidance.follow import FollowGuidance
@@ -43,6 +57,8 @@ from zarco_runtime.guidance.hold import HoldGuidance
 from zarco_runtime.guidance.lines import LineGuidance
 
 if TYPE_CHECKING:
+    from zarco_core.vessel import VesselModel
+    from zarco_runtime.control.settings import Control
     from zarco_runtime.settings import RuntimeConfig
 
 log = logging.getLogger("zarco.control")
@@ -63,11 +79,20 @@ def _manual_allocation(u1: float, u2: float) -> Allocation:
 class ControlTask:
     """Executes the supervisor's directive at ``control.rate_hz``."""
 
-    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock) -> None:
+    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock,
+                 listen: Listen | None = None) -> None:
         self.cfg = cfg
         self.bus = bus
         self.clock = clock
         self.dt = 1.0 / cfg.control.rate_hz
+        self.interlock = DriveInterlock(cfg.failsafe, cfg.devices.thrusters.enabled)
+        on = listen or bus.listen
+        on(Heading, self.interlock.on_heading)
+        on(ThrusterStatus, self.interlock.on_status)
+        on(ParamChange, self._on_param)
+        #: the gain schedule in use, and a design under way off the tick (its key)
+        self.schedule = design_schedule(*self._schedule_args())  # at start: not in a tick
+        self._designing: tuple[float, ...] | None = None
         th = cfg.thrusters
         self.port = ThrusterMap.from_table(th.port.u, th.port.f_n)
         self.stbd = ThrusterMap.from_table(th.starboard.u, th.starboard.f_n)
@@ -93,10 +118,51 @@ class ControlTask:
         self.saturated_ticks = 0
         self.faults = 0
 
+    def _schedule_args(self) -> tuple[VesselModel, Control, float, float]:
+        cfg = self.cfg
+        return cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt
+
     def _new_controller(self) -> LineController:
         cfg = self.cfg
+        sched = cached_schedule(*self._schedule_args())
+        if sched is None:
+            self._design_later()  # the configuration changed: keep the last design meanwhile
+        else:
+            self.schedule = sched
         return LineController(cfg.vessel, cfg.control, cfg.vessel.thruster_lag_s, self.dt,
-                              xtrack_rate_tau_s(cfg.control, cfg.navigation.estimator))
+                              xtrack_rate_tau_s(cfg.control, cfg.navigation.estimator),
+                              schedule=self.schedule)
+
+    def _on_param(self, m: ParamChange) -> None:
+        """A parameter changed: a new LQR weight is designed now, off the tick, so
+        that the next mode change finds it ready."""
+        if m.name.startswith("control.lqr_") and \
+                cached_schedule(*self._schedule_args()) is None:
+            self._design_later()
+
+    def _design_later(self) -> None:
+        """Design the gain schedule of the current configuration off the tick."""
+        args = self._schedule_args()
+        key = GainSchedule.key(*args)
+        if self._designing == key:
+            return
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            loop = None
+        if loop is None or isinstance(loop, VirtualTimeEventLoop):
+            design_schedule(*args)  # virtual time: no tick waits for it
+            return
+        self._designing = key
+        fut = loop.run_in_executor(None, design_schedule, *args)
+
+        def done(f: asyncio.Future[GainSchedule]) -> None:
+            if self._designing == key:
+                self._designing = None
+            if not f.cancelled() and f.exception() is not None:
+                self._raise_fault(self.clock.now(), f"LQR design failed: {f.exception()}")
+
+        fut.add_done_callback(done)
 
     # ------------------------------------------------------------- directive
 
@@ -145,6 +211,14 @@ class ControlTask:
         if mode is Mode.IDLE:
             self.reason = "idle"
             return ZERO
+        if not d.armed:
+            self.reason = "disarmed"
+            return ZERO
+        nav = self.nav.value
+        hazard = self.interlock.hazard(t, nav)
+        if hazard:
+            self.reason = f"not driving: {hazard}"
+            return ZERO
         if mode is Mode.MANUAL:
             m = self.manual.value
             if m is None or t > m.until or m.t < self.entered_t:
@@ -152,7 +226,6 @@ class ControlTask:
                 return ZERO
             self.reason = "manual"
             return _manual_allocation(m.u1, m.u2)
-        nav = self.nav.value
         if nav is None:
             self.reason = "no navigation estimate yet"
             return ZERO
@@ -272,4 +345,6 @@ class ControlTask:
                 self.bus.publish(ThrusterCommand(t, 0.0, 0.0, f"control error: {exc!r}"))
                 raise
             reason = self.fault or ("" if self.mode is not Mode.IDLE else "idle")
-            self.bus.publish(ThrusterCommand(t, alloc.u1, alloc.u2, reason))
+            cmd = ThrusterCommand(t, alloc.u1, alloc.u2, reason)
+            self.interlock.on_command(cmd)
+            self.bus.publish(cmd)

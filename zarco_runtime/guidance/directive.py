@@ -21,7 +21,8 @@ class Directive:
     """The mode to execute, with its mission (lines: from leg ``start_leg``) or
     its point (hold, return: NED metres).  ``reason`` says why (for status);
     ``since`` is when this directive was first given (``t`` is when it was last
-    republished)."""
+    republished); ``armed`` whether thrust is allowed at all (a directive that
+    is not armed gives zero thrust whatever its mode)."""
 
     t: float
     seq: int
@@ -31,6 +32,7 @@ class Directive:
     point: tuple[float, float] | None = None
     reason: str = ""
     since: float = -1.0
+    armed: bool = False
 
     def __post_init__(self) -> None:
         if self.since < 0.0:

@@ -62,23 +62,24 @@ class MissionConfig:
         if self.auv_plan:
             why = self._check_plan()
             if why:
-                raise ValueError(f"auv_plan: {why}")
+                raise ValueError(why)
 
     def _check_plan(self) -> str:
-        """Why ``auv_plan`` is not a plan in this mission ("" when it is)."""
+        """Why ``auv_plan`` is not a plan in this mission ("" when it is), as
+        ``auv_plan[i]: reason``."""
         if self.kind != "follow":
-            return f"only a follow mission has an AUV plan (kind = {self.kind!r})"
+            return f"auv_plan: only a follow mission has an AUV plan (kind = {self.kind!r})"
         if len(self.auv_plan) > MAX_POINTS:
-            return f"has {len(self.auv_plan)} points, at most {MAX_POINTS}"
+            return f"auv_plan: has {len(self.auv_plan)} points, at most {MAX_POINTS}"
         pts: list[tuple[float, float]] = []
         for i, p in enumerate(self.auv_plan):
             if len(p) != 2:
                 what = "[lat, lon]" if self.frame == "geodetic" else "[north, east]"
-                return f"point {i} must be {what}, has {len(p)} numbers"
+                return f"auv_plan[{i}]: must be {what}, has {len(p)} numbers"
             if self.frame == "geodetic":
                 lat, lon = p
                 if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-                    return f"point {i} is not a latitude, longitude: {p}"
+                    return f"auv_plan[{i}]: not a latitude, longitude: {p}"
                 # metres about the first point (plausibility only: the origin's
                 # frame converts them when the mission is built)
                 lat0, lon0 = self.auv_plan[0]
@@ -87,7 +88,8 @@ class MissionConfig:
                             * math.cos(math.radians(lat0))))
             else:
                 pts.append((p[0], p[1]))
-        return check_points(pts)
+        why = check_points(pts)
+        return why.named("auv_plan") if why is not None else ""
 
 
 @dataclass(frozen=True, slots=True)

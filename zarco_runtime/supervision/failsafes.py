@@ -3,8 +3,12 @@
 The supervisor gathers what the conditions are judged on (:class:`Inputs`)
 and calls :meth:`FailsafeMonitor.evaluate` at its rate; the monitor says
 which failsafes entered (condition true for its time) and which cleared
-(condition false for ``clear_s``), each with a reason a person can read.
-What to do about it is the supervisor's.
+(condition false for ``clear_after_s``: a failsafe latches), each with a
+reason a person can read.  Conditions are judged in every mode, so a
+failsafe whose action stopped the boat does not clear because the boat
+stopped.  The driving conditions (position, heading, thruster controller)
+are the drive interlock's own functions, the very judgement the control task
+applies at every tick.  What to do about it is the supervisor's.
 """
 
 from __future__ import annotations
@@ -12,25 +16,29 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from zarco_core.messages import UNDER_WAY, Mode, NavState
+from zarco_core.messages import Mode, NavState
+from zarco_runtime.control.interlock import heading_lost, position_lost, thruster_silent
 from zarco_runtime.supervision.settings import CONDITIONS, Failsafe
 
 #: severity of the actions: the most severe active one wins
 SEVERITY = {"continue": 0, "return": 1, "hold": 2, "idle": 3}
+#: the conditions under which nothing drives (zero thrust while one is active)
+DRIVING = frozenset({"position_lost", "heading_lost", "thruster_silent"})
 
 
 @dataclass(slots=True)
 class Inputs:
     """What the conditions are judged on, at time ``now`` (runtime clock, s).
 
-    ``mode`` is the mode the operator (or mission) set; ``last_heading_t`` the
-    time of the last compass heading (None: never); ``status_ref_t`` when the
-    thruster controller last answered, or when thrust was first commanded if
-    it never did (None: no thrust asked yet); ``heartbeat_t`` the last operator
-    heartbeat on the supervising link (None: none yet: not armed);
-    ``outside_fence`` why the position is outside the geofence ("" inside);
-    ``auv_lost`` why the AUV track is lost ("" not lost); ``failed`` the
-    control-path components failed and not yet running again.
+    ``mode`` is the vessel's mode and ``armed`` whether it is armed;
+    ``last_heading_t`` the time of the last compass heading (None: never);
+    ``status_ref_t`` when the thruster controller last answered, or when the
+    first command was sent to it if it never did (None: nothing sent yet, or no
+    thruster controller configured); ``heartbeat_t`` the last operator
+    heartbeat on the supervising link (None: none yet: the link is not
+    watched); ``outside_fence`` why the position is outside the geofence (""
+    inside); ``auv_lost`` why the AUV track is lost ("" not lost); ``failed``
+    the control-path components failed and not yet running again.
     """
 
     now: float
@@ -42,6 +50,7 @@ class Inputs:
     outside_fence: str = ""
     auv_lost: str = ""
     failed: list[str] = field(default_factory=list)
+    armed: bool = False
 
 
 @dataclass(slots=True)
@@ -68,52 +77,30 @@ class FailsafeMonitor:
         """(reason, onset) if condition ``name`` holds now, else ("", nan).  The onset
         is when the condition (the fault) began, for the delay and the report."""
         cfg = self.cfg
-        nav = i.nav
-        moving = i.mode in UNDER_WAY
-        if name == "position_lost":
-            if not moving:
+        if name == "position_lost":  # judged from the first fix (before: not armable)
+            if i.nav is None or not math.isfinite(i.nav.gps_age_s):
                 return "", math.nan
-            if nav is None:
-                return "no position estimate", i.now
-            age = nav.gps_age_s + (i.now - nav.t)
-            if age > cfg.position_lost_s:
-                return f"no GPS position for {age:.1f} s", i.now - age
-            if not nav.pos_valid:
-                return "position estimate invalid", nav.t
-            return "", math.nan
-        if name == "heading_lost":
-            if not moving:
-                return "", math.nan
+            return position_lost(i.now, i.nav, cfg.position_lost_s)
+        if name == "heading_lost":  # judged from the first heading (before: not armable)
             if i.last_heading_t is None:
-                return "no compass heading yet", i.now
-            age = i.now - i.last_heading_t
-            if age > cfg.heading_lost_s:
-                return f"no compass heading for {age:.1f} s", i.last_heading_t
-            if nav is not None and not nav.heading_valid:
-                return "heading estimate invalid", nav.t
-            return "", math.nan
-        if name == "thruster_silent":
-            if i.mode is Mode.IDLE or i.status_ref_t is None:
                 return "", math.nan
-            age = i.now - i.status_ref_t
-            if age > cfg.thruster_silent_s:
-                return f"no status from the thruster controller for {age:.1f} s", \
-                    i.status_ref_t
-            return "", math.nan
+            return heading_lost(i.now, i.last_heading_t, i.nav, cfg.heading_lost_s)
+        if name == "thruster_silent":
+            return thruster_silent(i.now, i.status_ref_t, cfg.thruster_silent_s)
         if name == "link_lost":
-            if not moving or i.heartbeat_t is None:
+            if not i.armed or i.heartbeat_t is None:
                 return "", math.nan
             age = i.now - i.heartbeat_t
             if age > cfg.link_lost_s:
                 return f"no operator heartbeat ({cfg.link}) for {age:.0f} s", i.heartbeat_t
             return "", math.nan
         if name == "geofence":
-            return (i.outside_fence, i.now) if moving and i.outside_fence else ("", math.nan)
+            return (i.outside_fence, i.now) if i.outside_fence else ("", math.nan)
         if name == "auv_lost":
             return (i.auv_lost, i.now) if i.mode is Mode.FOLLOW and i.auv_lost \
                 else ("", math.nan)
         if name == "component_failed":
-            if i.mode is Mode.IDLE or not i.failed:
+            if not i.failed:
                 return "", math.nan
             return f"component failed: {', '.join(sorted(i.failed))}", i.now
         raise KeyError(name)
@@ -142,16 +129,13 @@ class FailsafeMonitor:
                     fs = self.false_since[name]
                     if fs is None:
                         self.false_since[name] = fs = i.now
-                    if i.now - fs >= cfg.clear_s:
+                    if i.now - fs >= cfg.clear_after_s:
                         self.false_since[name] = None
                         was = self.active.pop(name)
                         out.append(Transition(name, False, f"cleared ({was})",
                                               cfg.action(name), fs))
         return out
 
-    def reset(self, names: list[str] | None = None) -> None:
-        """Forget active failsafes (``stop``: the operator has taken over)."""
-        for n in names or list(self.active):
-            self.active.pop(n, None)
-            self.since[n] = None
-            self.false_since[n] = None
+    def driving(self) -> list[str]:
+        """The active failsafes under which nothing may drive."""
+        return [n for n in self.active if n in DRIVING]

@@ -20,32 +20,39 @@ class Failsafe:
     """The failsafe table: for each condition, the action and its time.
 
     ==================  =====================================================  =========
-    condition           true when (judged against the mode the operator set)   default
+    condition           true when (in every mode, armed or not, unless said)   default
     ==================  =====================================================  =========
-    position_lost       under way and no GPS position fused for               idle, 10 s
-                        ``position_lost_s`` (dead reckoning until then), or
-                        the estimator calls its position invalid
-    heading_lost        under way and no compass heading for                  idle, 0.5 s
-                        ``heading_lost_s``, or the heading estimate invalid
-    thruster_silent     thrust commanded and no ``$PZTHS`` from the            idle, 0.6 s
-                        thruster controller for ``thruster_silent_s``
-                        (counted from the first command if it never answered)
-    link_lost           under way and no operator heartbeat on ``link`` for   hold, 10 s
+    position_lost       no GPS position fused for ``position_lost_s`` (dead   idle, 10 s
+                        reckoning until then), or the estimator calls its
+                        position invalid
+    heading_lost        no compass heading for ``heading_lost_s``, or the     idle, 0.5 s
+                        heading estimate invalid
+    thruster_silent     no ``$PZTHS`` from the thruster controller for         idle, 0.6 s
+                        ``thruster_silent_s`` (counted from the first command
+                        if it never answered)
+    link_lost           armed and no operator heartbeat on ``link`` for       hold, 10 s
                         ``link_lost_s`` (once one has been heard)
-    geofence            under way and outside the geofence for                hold, 0 s
-                        ``geofence_s``
+    geofence            outside the geofence for ``geofence_s``               hold, 0 s
     auv_lost            following and the AUV track lost for ``auv_lost_s``    hold, 30 s
     component_failed    a component on the control path failed and is being   idle, 0 s
                         restarted (for ``component_failed_s``)
     ==================  =====================================================  =========
 
+    Before the first position estimate and the first compass heading their
+    conditions are not judged yet: the boat cannot be armed without them
+    (the control loop gives zero thrust then too).
+
     A failsafe fires once when its condition becomes true and applies its
     action (the more severe wins: idle > hold > return > continue); it
-    clears when the condition has been false for ``clear_s``.  Each entry
-    and exit is an event with its reason.  When the last one clears, the
-    vessel does ``after_clear``: ``hold`` where it is (and says so; a
-    ``resume`` command continues the mission), ``resume`` the interrupted
-    mode by itself, or stay ``idle``.
+    *latches*: it clears only when its condition has been false for
+    ``clear_after_s``.  Each entry and exit is an event with its reason.
+    ``idle`` disarms: the boat stays still until an operator arms it again.
+    While position_lost, heading_lost or thruster_silent is active no
+    thruster command but zero is sent, whatever the mode and the action.
+    When the last failsafe clears, a vessel that a ``hold`` or ``return``
+    action kept under way does ``after_clear``: ``hold`` where it is (and says
+    so; a ``resume`` command continues the mission), ``resume`` the interrupted
+    mode by itself, or go ``idle``.
     """
 
     position_lost: str = spec("idle", "", "action on position lost", choices=ACTIONS)
@@ -75,8 +82,8 @@ class Failsafe:
                                  "fails", choices=ACTIONS)
     component_failed_s: float = spec(0.0, "s", "a component failed (and restarting) for this "
                                      "long", min=0.0, max=600.0)
-    clear_s: float = spec(2.0, "s", "a condition must be false this long to clear", min=0.0,
-                          max=600.0)
+    clear_after_s: float = spec(2.0, "s", "a failsafe clears only after its condition has "
+                                "been false (healthy) this long", min=0.0, max=600.0)
     after_clear: str = spec("hold", "", "when every failsafe has cleared: hold where the "
                             "vessel is, resume the interrupted mode, or stay idle",
                             choices=["hold", "resume", "idle"])
@@ -137,6 +144,11 @@ class Supervisor:
                                "empty: none")
     max_speed_mps: float = spec(2.0, "m/s", "fastest speed a commanded mission may ask",
                                 min=0.1, max=3.0)
+    command_rate_hz: float = spec(50.0, "1/s", "commands accepted per second from one "
+                                  "source, sustained (beyond: refused \"rate limited\"; "
+                                  "stop and disarm are never limited)", min=1.0, max=10000.0)
+    command_burst: int = spec(100, "", "commands one source may send at once before the "
+                              "rate applies", min=1, max=100000)
 
     def validate(self) -> None:
         if self.home and (len(self.home) != 2 or not (-90.0 <= self.home[0] <= 90.0)

@@ -1,44 +1,75 @@
-"""The supervisor: the one owner of the vessel's mode.
+"""The supervisor: the one owner of the vessel's mode, of arming and of changes.
 
-It takes :class:`~zarco_core.messages.Command` messages from any source
-(local, scenario, shore, MAVLink), answers each with exactly one
-:class:`~zarco_core.messages.CommandAck` (accepted, or refused with a reason
-a person can read), evaluates the failsafe table at ``supervisor.rate_hz``,
-tells the control loop what to do through a
-:class:`~zarco_runtime.guidance.directive.Directive` (republished so that a
-silent supervisor stops the boat), and publishes the 1 Hz
+It takes :class:`~zarco_core.messages.Command` messages (typed arguments,
+:mod:`zarco_core.commands`) from any source (local, scenario, shore, MAVLink),
+answers each with exactly one :class:`~zarco_core.messages.CommandAck`
+(accepted, or refused with a reason a person can read), evaluates the
+failsafe table at ``supervisor.rate_hz``, tells the control loop what to do
+through a :class:`~zarco_runtime.guidance.directive.Directive` (republished so
+that a silent supervisor stops the boat), and publishes the 1 Hz
 :class:`~zarco_core.messages.VesselStatus` snapshot and an
-:class:`~zarco_core.messages.Event` for every mode change, acknowledgement,
-failsafe entry and exit, fault and component failure.
+:class:`~zarco_core.messages.Event` for every mode change, arming,
+acknowledgement, parameter change, failsafe entry and exit, fault and
+component failure.
 
-The vessel boots ``idle``.  A configured mission starts at boot only with
-``mission.autostart`` (once the position and heading are valid).  After a
-restart the last mission is known (``supervisor.state_file``) but is only
-continued by a ``resume`` command.
+**Arming.**  The vessel boots ``idle`` and disarmed.  ``arm`` is accepted only
+with a valid position and heading, the thruster controller answering and no
+failsafe active; ``disarm`` and ``stop`` go idle and disarmed.  While
+disarmed every command that would move the boat (a moving mode, a mission
+start, ``follow``, manual thrust, ``resume``) is refused with "disarmed", and
+the directive says so, so the control task sends zero thrust whatever its
+mode.  ``mission.autostart`` arms at boot once the checks pass (the
+operator's explicit choice) and starts the mission.
+
+**Failsafes latch** (:mod:`.failsafes`): conditions are judged in every mode;
+one clears only after its condition has been healthy for
+``failsafe.clear_after_s``; an ``idle`` action disarms, so the boat stays
+still until an operator acts; ``failsafe.after_clear`` applies only to a boat
+a ``hold`` or ``return`` action kept under way.
+
+**Parameters** are ``param`` commands (:mod:`.params`): validated, refused
+under way where unsafe, applied to the live configuration, published as
+:class:`~zarco_core.messages.ParamChange` and recorded.
+
+**No input ends or restarts it**: any exception while handling a command
+becomes a refusal and a counted fault.  Each source is rate limited
+(:mod:`.rate_limit`; ``stop`` and ``disarm`` never are).  The state file is
+written by a task of its own (:mod:`.state_file`), never in a listener.
+
+After a restart the last mission is known (``supervisor.state_file``) but is
+only continued by a ``resume`` command.
 """
 
 from __future__ import annotations
 
-import json
+import asyncio
 import logging
-import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from zarco_core.auv_messages import AuvPlan, AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
+from zarco_core.commands import (
+    ArmArgs,
+    DisarmArgs,
+    FollowArgs,
+    MissionArgs,
+    ModeArgs,
+    ParamArgs,
+    ResumeArgs,
+    StopArgs,
+    ThrustArgs,
+)
 from zarco_core.component import ComponentContext
 from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import (
+    MOVING,
     Command,
     CommandAck,
     ComponentState,
     DeviceHealth,
-    DeviceSummary,
     Event,
     Fault,
     GuidanceStatus,
@@ -48,28 +79,36 @@ from zarco_core.messages import (
     Mode,
     NavState,
     OperatorHeartbeat,
+    ParamChange,
     ThrusterCommand,
     ThrusterStatus,
     VesselStatus,
 )
 from zarco_runtime.guidance.directive import Directive, ManualThrust
-from zarco_runtime.guidance.mission import Leg, Mission, legs_from_points
+from zarco_runtime.guidance.mission import Mission
+from zarco_runtime.supervision import params
 from zarco_runtime.supervision.failsafes import SEVERITY, FailsafeMonitor, Inputs
 from zarco_runtime.supervision.geofence import Fence
-from zarco_runtime.tracking.plan import geodetic_plan
+from zarco_runtime.supervision.missions import lines_mission, mission_points
+from zarco_runtime.supervision.rate_limit import EventBudget, TokenBuckets
+from zarco_runtime.supervision.state_file import (
+    SavedMission,
+    StateFile,
+    mission_from_json,
+    mission_to_json,
+)
+from zarco_runtime.supervision.status import NOT_REFUSALS, device_summaries
+from zarco_runtime.tracking.plan import PlanError, geodetic_plan
 
 if TYPE_CHECKING:
     from zarco_runtime.settings import RuntimeConfig
 
+__all__ = ["Boot", "Capabilities", "Supervisor", "mission_from_json", "mission_to_json"]
+
 log = logging.getLogger("zarco.supervisor")
 
-#: counters of a device that are not refusals (the rest are reasons a sentence was dropped)
-_NOT_REFUSALS = frozenset({
-    "bytes", "sentences_ok", "status_ok", "reconnects", "open_failures", "bytes_discarded",
-    "corrections_bytes", "corrections_dropped_bytes", "corrections_source_errors",
-    "commands_sent", "watchdog_zero", "not_sent_disconnected", "write_errors",
-    "nonfinite_commands", "rtcm_frames", "rtcm_dropped_bytes", "rtcm_bad_frames",
-})
+#: (kept for the tools that read device summaries the supervisor's way)
+_NOT_REFUSALS = NOT_REFUSALS
 
 
 @dataclass(slots=True)
@@ -91,41 +130,20 @@ class Boot:
 
 
 @dataclass(slots=True)
-class _Saved:
-    """The last lines/follow mission and how far it got (kept across restarts)."""
-
-    mission: Mission
-    leg: int = 0
-    complete: bool = False
-
-
-@dataclass(slots=True)
 class _Health:
     devices: dict[str, DeviceHealth] = field(default_factory=dict)
     components: dict[str, ComponentState] = field(default_factory=dict)
 
 
-def mission_to_json(m: Mission) -> dict[str, Any]:
-    return {"kind": m.kind, "name": m.name, "waypoints": [list(w) for w in m.waypoints],
-            "legs": [[lg.n0, lg.e0, lg.n1, lg.e1, lg.speed_mps] for lg in m.legs],
-            "auv_plan": [list(p) for p in m.auv_plan]}
-
-
-def mission_from_json(d: dict[str, Any]) -> Mission:
-    legs = tuple(Leg(i, *map(float, lg)) for i, lg in enumerate(d.get("legs", [])))
-    wps = tuple((float(a), float(b)) for a, b in d.get("waypoints", []))
-    plan = tuple((float(a), float(b)) for a, b in d.get("auv_plan", []))
-    return Mission(str(d["kind"]), legs, str(d.get("name", "")), wps, plan)
-
-
 class Supervisor:
-    """Owns the mode; see the module docstring."""
+    """Owns the mode, arming and changes; see the module docstring."""
 
     def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock, ctx: ComponentContext,
                  boot: Boot | None = None, caps: Capabilities | None = None,
                  counters: Callable[[], dict[str, int]] | None = None,
                  control_path: frozenset[str] = frozenset(),
-                 components: Callable[[], dict[str, ComponentState]] | None = None) -> None:
+                 components: Callable[[], dict[str, ComponentState]] | None = None,
+                 state: StateFile | None = None) -> None:
         self.cfg = cfg
         self.bus = bus
         self.clock = clock
@@ -153,7 +171,8 @@ class Supervisor:
         self.mission: Mission | None = None  # the mission of the current mode
         #: who gave the AUV plan of the follow mission being started
         self.plan_source = "mission"
-        self.saved: _Saved | None = self._load_state()
+        self.state = state if state is not None else StateFile(cfg.supervisor.state_file)
+        self.saved: SavedMission | None = self.state.load()
         self.loaded: Mission | None = self.boot.mission  # a mission given but not started
         self.pending_start = self.boot.autostart and self.boot.mission is not None
         self.fs_applied = False  # the mode is a failsafe's (no operator command since)
@@ -169,8 +188,16 @@ class Supervisor:
         self.status_msg: VesselStatus | None = None
         self.status_due = False
         self.last_eval = -1e9
-        self.acks = {"accepted": 0, "refused": 0}
+        self.acks = {"accepted": 0, "refused": 0, "thrust": 0}
+        self.command_faults = 0
+        self.buckets = TokenBuckets(lambda: cfg.supervisor.command_rate_hz,
+                                    lambda: cfg.supervisor.command_burst)
+        self.ack_events = EventBudget()
+        #: the mission the status shows (loaded or running), its points and their id
+        self._shown: tuple[Mission | None, tuple[tuple[float, float], ...]] = (None, ())
+        self.mission_id = 0
         ctx.listen(Command, self.on_command)
+        ctx.listen(CommandAck, self._on_ack)
         ctx.listen(Heading, self._on_heading)
         ctx.listen(ThrusterStatus, self._on_status)
         ctx.listen(ThrusterCommand, self._on_thrust)
@@ -189,7 +216,7 @@ class Supervisor:
         self.last_status_t = m.t
 
     def _on_thrust(self, m: ThrusterCommand) -> None:
-        if self.first_cmd_t is None and (m.u1 != 0.0 or m.u2 != 0.0):
+        if self.first_cmd_t is None:  # a controller that never answers is silent from here
             self.first_cmd_t = m.t
 
     def _on_heartbeat(self, m: OperatorHeartbeat) -> None:
@@ -259,6 +286,15 @@ class Supervisor:
         age = self.now() - n.t
         return n.x_m + n.vn_mps * age, n.y_m + n.ve_mps * age
 
+    def _publish_directive(self) -> None:
+        """The current directive again, now, with the current arming (the same
+        ``seq``: what to do has not changed, only whether thrust is allowed)."""
+        d = self.directive
+        self.directive = Directive(self.now(), d.seq, d.mode, d.mission, d.start_leg,
+                                   d.point, d.reason, d.since, self.armed)
+        self.bus.publish(self.directive)
+        self.status_due = True
+
     def _set_mode(self, mode: Mode, reason: str, *, mission: Mission | None = None,
                   start_leg: int = 0, point: tuple[float, float] | None = None,
                   by_failsafe: bool = False, keep_operator: bool = False) -> None:
@@ -274,17 +310,14 @@ class Supervisor:
         self.mode = mode
         self.mission = mission
         self.seq += 1
-        if mode is Mode.IDLE:
-            self.armed = False
-        else:
-            self.armed = True
         if not keep_operator:
             self.fs_applied = by_failsafe
         if mode is Mode.LINES and mission is not None:
             self.progress = MissionProgress("lines", mission.name, start_leg, len(mission.legs))
         elif mode is Mode.FOLLOW:
             self.progress = MissionProgress("follow", mission.name if mission else "follow")
-        self.directive = Directive(self.now(), self.seq, mode, mission, start_leg, point, reason)
+        self.directive = Directive(self.now(), self.seq, mode, mission, start_leg, point, reason,
+                                   armed=self.armed)
         self.directive_t0 = self.directive.t
         self.auv_held = False
         self.bus.publish(self.directive)
@@ -295,6 +328,23 @@ class Supervisor:
             where = f" at {lat:.6f}, {lon:.6f}"
         self.event("mode", f"mode {mode.value}{where}: {reason}"
                    + (f" (was {old.value})" if old is not mode else ""))
+
+    def _arm(self, by: str) -> None:
+        self.armed = True
+        self.event("arming", f"armed by {by}")
+        self._publish_directive()
+
+    def _disarm(self, reason: str, *, by_failsafe: bool = False) -> None:
+        """Idle and disarmed (stop, disarm, an ``idle`` failsafe)."""
+        was = self.armed
+        self.armed = False
+        self.pending_start = False
+        if self.mode is not Mode.IDLE:
+            self._set_mode(Mode.IDLE, reason, by_failsafe=by_failsafe)
+        else:
+            self._publish_directive()
+        if was:
+            self.event("arming", f"disarmed: {reason}")
 
     def _mission_complete(self) -> None:
         m = self.mission
@@ -308,11 +358,37 @@ class Supervisor:
 
     # --------------------------------------------------------- preconditions
 
+    def arm_refusal(self) -> str:
+        """Why the boat cannot be armed now ("" when it can)."""
+        caps = self.caps
+        if not caps.thrusters:
+            return "thrusters disabled (devices.thrusters.enabled = false)"
+        if not caps.gps:
+            return "GPS disabled (devices.gps.enabled = false)"
+        if not caps.compass:
+            return "compass disabled (devices.compass.enabled = false)"
+        n = self.nav.value
+        if n is None or not n.pos_valid:
+            return "no valid position"
+        now = self.now()
+        if not n.heading_valid or self.last_heading_t is None or \
+                now - self.last_heading_t > self.cfg.failsafe.heading_lost_s:
+            return "no valid heading"
+        if self.last_status_t is None or \
+                now - self.last_status_t > self.cfg.failsafe.thruster_silent_s:
+            return "the thruster controller is not answering"
+        if self.failsafes.active:
+            return "failsafe active: " + ", ".join(
+                f"{k} ({v})" for k, v in sorted(self.failsafes.active.items()))
+        return ""
+
     def _cannot(self, mode: Mode) -> str:
         """Why ``mode`` cannot be entered now ("" when it can)."""
         caps = self.caps
         if mode is Mode.IDLE:
             return ""
+        if not self.armed:
+            return "disarmed"
         if not caps.thrusters:
             return "thrusters disabled (devices.thrusters.enabled = false)"
         if "thruster_silent" in self.failsafes.active:
@@ -339,93 +415,118 @@ class Supervisor:
             return "home unknown"
         return ""
 
+    def _under_way(self) -> str:
+        """The mode the boat is under way in ("" when idle or disarmed)."""
+        return self.mode.value if self.armed and self.mode in MOVING else ""
+
     # -------------------------------------------------------------- commands
 
     def on_command(self, cmd: Command) -> None:
-        """Handle one command; publishes exactly one CommandAck."""
+        """Handle one command; publishes exactly one CommandAck.  Nothing a command
+        carries can raise out of here: an error in handling it is a refusal and a
+        counted fault (``stop`` and ``disarm`` still stop the boat)."""
+        a = cmd.args
+        safe = isinstance(a, (StopArgs, DisarmArgs))
         try:
-            reason = self._handle(cmd)
-        except (KeyError, TypeError, ValueError) as exc:
-            reason = f"bad arguments: {exc}"
-        ok = not reason
-        self.acks["accepted" if ok else "refused"] += 1
-        ack = CommandAck(self.now(), cmd.id, cmd.source, cmd.name, ok, self.mode.value, reason)
-        self.bus.publish(ack)
-        if ok and cmd.name == "thrust":
-            self.acks["thrust"] = self.acks.get("thrust", 0) + 1  # a lease renewal: counted
+            if not safe and not self.buckets.take(cmd.source, self.now()):
+                sup = self.cfg.supervisor
+                reason = (f"rate limited: more than {sup.command_rate_hz:g} commands a second "
+                          f"(burst {sup.command_burst}) from {cmd.source}")
+            else:
+                reason = self._handle(cmd)
+        except Exception as exc:  # a command never restarts the supervisor
+            self.command_faults += 1
+            log.exception("command %s from %s", cmd.name, cmd.source)
+            reason = f"not handled: internal error ({type(exc).__name__})"
+            self.bus.publish(Fault(self.now(), "supervisor",
+                                   f"command {cmd.name} from {cmd.source}: {exc!r}"[:300]))
+            if safe:
+                self.armed, self.pending_start = False, False
+                self._set_mode(Mode.IDLE, f"{cmd.name} from {cmd.source}")
+                reason = ""
+        self.bus.publish(CommandAck(self.now(), cmd.id, cmd.source, cmd.name, not reason,
+                                    self.mode.value, reason))
+
+    def _on_ack(self, ack: CommandAck) -> None:
+        """Every acknowledgement (ours, and a link's refusal of a payload): counted
+        and told, within each source's event budget."""
+        self.acks["accepted" if ack.ok else "refused"] += 1
+        if ack.ok and ack.name == "thrust":
+            self.acks["thrust"] += 1  # a lease renewal: counted, not told
             return
-        self.event("ack", f"{cmd.name} from {cmd.source}: "
-                   + ("accepted" if ok else f"refused: {reason}"))
+        if self.ack_events.allow(ack.source, ack.t):
+            self.event("ack", f"{ack.name} from {ack.source}: "
+                       + ("accepted" if ack.ok else f"refused: {ack.reason}"))
 
     def _handle(self, cmd: Command) -> str:
-        a = cmd.args or {}
-        name = cmd.name
+        a = cmd.args
         src = cmd.source
-        if name in ("stop", "disarm"):
-            self.pending_start = False
-            self._set_mode(Mode.IDLE, f"{name} from {src}")
+        if isinstance(a, (StopArgs, DisarmArgs)):
+            self._disarm(f"{cmd.name} from {src}")
             return ""
-        if name == "arm":
-            self.armed = True
-            self.event("mode", f"armed by {src}")
-            return ""
-        if name == "mode":
-            try:
-                mode = Mode(str(a.get("mode", "")))
-            except ValueError:
-                return f"unknown mode {a.get('mode')!r} (one of {', '.join(m.value for m in Mode)})"
-            if mode is Mode.IDLE:
-                self.pending_start = False
-                self._set_mode(Mode.IDLE, f"mode idle from {src}")
-                return ""
-            if mode is Mode.HOLD:
-                return self._hold(a, src)
-            if mode is Mode.FOLLOW:
-                return self._follow(src, {})
-            if mode is Mode.LINES:
-                m = self.loaded or (self.saved.mission if self.saved and not self.saved.complete
-                                    and self.saved.mission.kind == "lines" else None)
-                if m is None:
-                    return "no mission loaded"
-                return self._start(m, 0, src)
-            why = self._cannot(mode)
+        if isinstance(a, ArmArgs):
+            why = self.arm_refusal()
             if why:
                 return why
-            if mode is Mode.RETURN:
-                self._set_mode(Mode.RETURN, f"return from {src}", point=self.home)
-            else:
-                self._set_mode(Mode.MANUAL, f"manual from {src}")
+            if not self.armed:
+                self._arm(src)
             return ""
-        if name == "mission":
+        if isinstance(a, ParamArgs):
+            return self._param(cmd, a)
+        if isinstance(a, MissionArgs):
             return self._mission(a, src)
-        if name == "follow":
+        if isinstance(a, ModeArgs):
+            return self._mode(a, src)
+        if isinstance(a, FollowArgs):
             return self._follow(src, a)
-        if name == "thrust":
+        if isinstance(a, ThrustArgs):
+            if not self.armed:
+                return "disarmed"
             if self.mode is not Mode.MANUAL:
                 return "not in manual mode"
-            u1, u2 = float(a["u1"]), float(a["u2"])  # type: ignore[arg-type]
-            for k, u in (("u1", u1), ("u2", u2)):
-                if not (math.isfinite(u) and -100.0 <= u <= 100.0):
-                    return f"{k} must be a number within -100..100, got {a[k]!r}"
             t = self.now()
-            self.bus.publish(ManualThrust(t, u1, u2, t + self.cfg.supervisor.manual_lease_s))
+            self.bus.publish(ManualThrust(t, a.u1, a.u2, t + self.cfg.supervisor.manual_lease_s))
             return ""
-        if name == "resume":
+        if isinstance(a, ResumeArgs):
             return self._resume(src)
-        return f"unknown command {name!r}"
+        return f"{cmd.name}: not handled by this supervisor"
 
-    def _hold(self, a: dict[str, object], src: str) -> str:
+    def _mode(self, a: ModeArgs, src: str) -> str:
+        mode = a.mode
+        if mode is Mode.IDLE:
+            self.pending_start = False
+            self._set_mode(Mode.IDLE, f"mode idle from {src}")
+            return ""
+        if not self.armed:
+            return "disarmed"
+        if mode is Mode.HOLD:
+            return self._hold(a, src)
+        if mode is Mode.FOLLOW:
+            return self._follow(src, None)
+        if mode is Mode.LINES:
+            m = self.loaded or (self.saved.mission if self.saved and not self.saved.complete
+                                and self.saved.mission.kind == "lines" else None)
+            if m is None:
+                return "no mission loaded"
+            return self._start(m, 0, src)
+        why = self._cannot(mode)
+        if why:
+            return why
+        if mode is Mode.RETURN:
+            self._set_mode(Mode.RETURN, f"return from {src}", point=self.home)
+        else:
+            self._set_mode(Mode.MANUAL, f"manual from {src}")
+        return ""
+
+    def _hold(self, a: ModeArgs, src: str) -> str:
         why = self._cannot(Mode.HOLD)
         if why:
             return why
-        if "lat_deg" in a or "lon_deg" in a:
-            lat, lon = float(a["lat_deg"]), float(a["lon_deg"])  # type: ignore[arg-type]
-            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-                return f"not a latitude, longitude: {lat}, {lon}"
-            point = self.frame.to_ned(lat, lon)
+        if a.lat_deg is not None and a.lon_deg is not None:
+            point = self.frame.to_ned(a.lat_deg, a.lon_deg)
             out = self.fence.outside(*point) if self.fence.enabled else ""
             if out:
-                return f"hold point outside the geofence ({out})"
+                return f"lat_deg, lon_deg: hold point outside the geofence ({out})"
         else:
             p = self._position()
             if p is None:
@@ -434,7 +535,7 @@ class Supervisor:
         self._set_mode(Mode.HOLD, f"hold from {src}", point=point)
         return ""
 
-    def _follow(self, src: str, a: dict[str, object], m: Mission | None = None) -> str:
+    def _follow(self, src: str, a: FollowArgs | None, m: Mission | None = None) -> str:
         """Follow the AUV: with the mission ``m`` (a resumed or configured one), or
         with the command's ``auv_plan`` ([[lat_deg, lon_deg], ...]; [] for none),
         or without one, with the configured follow mission's plan."""
@@ -445,101 +546,61 @@ class Supervisor:
             boot = self.boot.mission
             plan = boot.auv_plan if boot is not None and boot.kind == "follow" else ()
             self.plan_source = "mission"
-            if "auv_plan" in a:
+            if a is not None and a.auv_plan is not None:
                 try:
-                    plan = geodetic_plan(a["auv_plan"], self.frame.to_ned)
-                except ValueError as exc:
-                    return f"auv_plan: {exc}"
+                    plan = geodetic_plan(a.auv_plan, self.frame.to_ned)
+                except PlanError as exc:
+                    return exc.named("auv_plan")
                 self.plan_source = src
             m = Mission("follow", name="follow", auv_plan=plan)
         else:
             self.plan_source = "mission" if m is self.boot.mission else src
-        self.saved = _Saved(m)
+        self.saved = SavedMission(m)
         self._save_state()
         self._set_mode(Mode.FOLLOW, f"follow from {src}"
                        + (f" with an AUV plan of {len(m.auv_plan)} points" if m.auv_plan
                           else ""), mission=m)
         return ""
 
-    def _mission(self, a: dict[str, object], src: str) -> str:
-        if a.get("clear"):
+    def _mission(self, a: MissionArgs, src: str) -> str:
+        if a.clear:
             if self.mode is Mode.LINES:
                 return "a mission is running: stop or hold first"
             self.loaded = None
             if self.saved is not None and self.saved.mission.kind == "lines":
                 self.saved.complete = True  # nothing left to start or resume
                 self._save_state()
+            self.status_due = True
             self.event("mission", f"loaded mission cleared by {src}")
             return ""
-        wps_raw = a.get("waypoints")
-        if not isinstance(wps_raw, list) or len(wps_raw) < 2:
-            return "waypoints: need a list of at least 2 [lat_deg, lon_deg]"
-        wps: list[tuple[float, float]] = []
-        for i, w in enumerate(wps_raw):
-            if not (isinstance(w, (list, tuple)) and len(w) == 2):
-                return f"waypoint {i}: must be [lat_deg, lon_deg]"
-            lat, lon = float(w[0]), float(w[1])
-            if not (math.isfinite(lat) and math.isfinite(lon) and -90.0 <= lat <= 90.0
-                    and -180.0 <= lon <= 180.0):
-                return f"waypoint {i}: not a latitude, longitude: {w}"
-            wps.append((lat, lon))
-        speed = float(a.get("speed_mps", 1.0))  # type: ignore[arg-type]
-        vmax = self.cfg.supervisor.max_speed_mps
-        if not (math.isfinite(speed) and 0.05 <= speed <= vmax):
-            return f"speed_mps must be within 0.05..{vmax:g} m/s, got {a.get('speed_mps')!r}"
-        speeds_raw = a.get("leg_speeds_mps")
-        speeds: list[float] = []
-        if speeds_raw is not None:
-            if not isinstance(speeds_raw, list) or len(speeds_raw) != len(wps) - 1:
-                return f"leg_speeds_mps: need one speed per leg ({len(wps) - 1})"
-            for i, v in enumerate(speeds_raw):
-                sv = float(v)
-                if not (math.isfinite(sv) and 0.05 <= sv <= vmax):
-                    return f"leg_speeds_mps: leg {i} must be within 0.05..{vmax:g} m/s, got {v!r}"
-                speeds.append(sv)
-        start_leg = int(a.get("start_leg", 0))  # type: ignore[call-overload]
-        if not 0 <= start_leg < len(wps) - 1:
-            return f"start_leg must be within 0..{len(wps) - 2}, got {start_leg}"
-        pts = [self.frame.to_ned(lat, lon) for lat, lon in wps]
-        for i, p in enumerate(pts):
-            if math.hypot(*p) > 50_000.0:
-                return f"waypoint {i} is {math.hypot(*p) / 1000:.0f} km from the origin"
-            if i and math.hypot(p[0] - pts[i - 1][0], p[1] - pts[i - 1][1]) < 1.0:
-                return f"waypoints {i - 1} and {i} are less than 1 m apart"
-            if self.fence.enabled:
-                out = self.fence.outside(*p)
-                if out:
-                    return f"waypoint {i} is outside the geofence ({out})"
-        name = str(a.get("name", f"{len(wps)} waypoints from {src}"))
-        legs = legs_from_points(pts, speed)
-        if speeds:
-            legs = tuple(Leg(lg.index, lg.n0, lg.e0, lg.n1, lg.e1, v)
-                         for lg, v in zip(legs, speeds, strict=True))
-        m = Mission("lines", legs, name, tuple(wps))
-        start = bool(a.get("start", True))
-        if start:
-            why = self._start(m, start_leg, src)
-            if why:
-                return why
-        else:
-            self.loaded = m
-            self.event("mission", f"mission loaded: {name}")
+        if a.start and not self.armed:
+            return "disarmed"
+        m = lines_mission(a, self.frame, self.fence, self.cfg.supervisor.max_speed_mps, src)
+        if isinstance(m, str):
+            return m
+        if a.start:
+            return self._start(m, a.start_leg, src)
+        self.loaded = m
+        self.status_due = True
+        self.event("mission", f"mission loaded: {m.name}")
         return ""
 
     def _start(self, m: Mission, leg: int, src: str) -> str:
         if m.kind == "follow":
-            return self._follow(src, {}, m)
+            return self._follow(src, None, m)
         why = self._cannot(Mode.LINES)
         if why:
             return why
         self.loaded = m
-        self.saved = _Saved(m, leg)
+        self.saved = SavedMission(m, leg)
         self._save_state()
         self._set_mode(Mode.LINES, f"mission {m.name} from {src}"
                        + (f", from leg {leg + 1}" if leg else ""), mission=m, start_leg=leg)
         return ""
 
     def _resume(self, src: str) -> str:
+        if not self.armed:
+            return "disarmed"
         s = self.saved
         if s is None:
             return "no mission to resume"
@@ -547,37 +608,26 @@ class Supervisor:
             return f"the last mission ({s.mission.name}) is complete"
         return self._start(s.mission, s.leg, f"{src} (resume)")
 
+    def _param(self, cmd: Command, a: ParamArgs) -> str:
+        try:
+            old, new = params.apply(self.cfg, a.name, a.value, self._under_way())
+        except params.ParamRefused as exc:
+            return str(exc)
+        if a.name.startswith("geofence."):
+            home = self.fence.home
+            self.fence = Fence(self.cfg.geofence, self.frame)
+            self.fence.home = home
+        self.bus.publish(ParamChange(self.now(), a.name, new, old, cmd.source, cmd.id))
+        self.status_due = True
+        shown = repr(new) if len(repr(new)) <= 80 else f"{repr(new)[:77]}..."
+        self.event("param", f"{a.name} = {shown} (was {old!r}) by {cmd.source}")
+        return ""
+
     # ------------------------------------------------------------ state file
 
-    def _load_state(self) -> _Saved | None:
-        path = self.cfg.supervisor.state_file
-        if not path or not os.path.exists(path):
-            return None
-        try:
-            d = json.loads(Path(path).read_text())
-            return _Saved(mission_from_json(d["mission"]), int(d.get("leg", 0)),
-                          bool(d.get("complete", False)))
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            log.warning("state file %s unreadable (%s); no last mission", path, exc)
-            return None
-
     def _save_state(self) -> None:
-        path = self.cfg.supervisor.state_file
-        s = self.saved
-        if not path or s is None:
-            return
-        data = {"mission": mission_to_json(s.mission), "leg": s.leg, "complete": s.complete,
-                "utc_s": self.clock.utc()}
-        tmp = f"{path}.tmp"
-        try:
-            Path(path).parent.mkdir(parents=True, exist_ok=True)
-            with open(tmp, "w") as fh:
-                json.dump(data, fh)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except OSError as exc:
-            log.warning("cannot write the state file %s: %s", path, exc)
+        if self.saved is not None:
+            self.state.save(self.saved, self.clock.utc())
 
     # ------------------------------------------------------------ failsafes
 
@@ -594,13 +644,14 @@ class Supervisor:
                 self.auv_held = True
             if tr is not None and tr.lost and self.auv_held:
                 auv_lost = "AUV track lost"
-        status_ref = self.last_status_t if self.last_status_t is not None else self.first_cmd_t
-        if self.first_cmd_t is None and self.last_status_t is None:
-            status_ref = None
+        status_ref = None
+        if self.caps.thrusters:
+            status_ref = self.last_status_t if self.last_status_t is not None \
+                else self.first_cmd_t
         failed = [c for c, s in self.health.components.items()
                   if s.state != "running" and c in self.control_path]
         return Inputs(now, self.mode, self.nav.value, self.last_heading_t, status_ref,
-                      self.heartbeat_t, outside, auv_lost, failed)
+                      self.heartbeat_t, outside, auv_lost, failed, self.armed)
 
     def evaluate(self, now: float) -> None:
         """One evaluation of the failsafe table (and of a pending autostart)."""
@@ -616,48 +667,67 @@ class Supervisor:
             self.status_due = True
             if tr.entered:
                 self.event("failsafe", f"{tr.name}: {tr.reason}; action {tr.action} "
-                           f"(condition since {now - tr.t_condition:.2f} s)")
+                           f"(condition since {now - tr.t_condition:.2f} s)"
+                           + ("" if self.armed else "; disarmed already"))
                 self._apply(tr.action, f"failsafe {tr.name}: {tr.reason}")
             else:
                 self.event("failsafe", f"{tr.name} {tr.reason}")
                 if not self.failsafes.active:
                     self._after_clear()
         bm = self.boot.mission
-        if self.pending_start and bm is not None and \
-                not self._cannot(Mode.LINES if bm.kind == "lines" else Mode.FOLLOW):
-            self.pending_start = False
-            why = self._start(bm, 0, "autostart")
-            if why:
-                self.event("mission", f"autostart refused: {why}")
+        if self.pending_start and bm is not None:
+            self._autostart(bm)
+
+    def _autostart(self, bm: Mission) -> None:
+        """``mission.autostart``: arm once the checks pass, then start the mission."""
+        if not self.armed:
+            if self.arm_refusal():
+                return
+            self._arm("autostart (mission.autostart = true)")
+        if self._cannot(Mode.LINES if bm.kind == "lines" else Mode.FOLLOW):
+            return
+        self.pending_start = False
+        why = self._start(bm, 0, "autostart")
+        if why:
+            self.event("mission", f"autostart refused: {why}")
 
     def _apply(self, action: str, reason: str) -> None:
-        if action == "continue":
+        if action == "continue" or not self.armed:
             return
-        current = {Mode.IDLE: "idle", Mode.HOLD: "hold", Mode.RETURN: "return"}.get(self.mode)
+        if action == "idle":
+            self.fs_interrupted = None
+            self._disarm(reason, by_failsafe=True)
+            return
+        if self.mode is Mode.IDLE:
+            return  # armed but still: a failsafe never sets the boat moving
+        current = {Mode.HOLD: "hold", Mode.RETURN: "return"}.get(self.mode)
         if current is not None and SEVERITY[current] >= SEVERITY[action]:
             return
-        if self.fs_interrupted is None and self.mode is not Mode.IDLE:
+        if self.fs_interrupted is None:
             leg = self.progress.leg if self.mode is Mode.LINES else 0
             self.fs_interrupted = (self.mode, self.mission, leg)
-        if action == "idle":
-            self._set_mode(Mode.IDLE, reason, by_failsafe=True)
-        elif action == "hold":
+        if action == "hold":
             p = self._position()
             if p is None:
-                self._set_mode(Mode.IDLE, reason + " (no position to hold: idle)",
-                               by_failsafe=True)
+                self._disarm(reason + " (no position to hold: idle)", by_failsafe=True)
             else:
                 self._set_mode(Mode.HOLD, reason, point=p, by_failsafe=True)
         elif action == "return":
             if self.home is None or self._position() is None:
-                self._set_mode(Mode.IDLE, reason + " (cannot return: idle)", by_failsafe=True)
+                self._disarm(reason + " (cannot return: idle)", by_failsafe=True)
             else:
                 self._set_mode(Mode.RETURN, reason, point=self.home, by_failsafe=True)
 
     def _after_clear(self) -> None:
+        """Every failsafe has cleared: ``after_clear`` for a boat a failsafe kept
+        under way (hold, return); a boat an ``idle`` action stopped stays idle and
+        disarmed until an operator acts."""
         interrupted, self.fs_interrupted = self.fs_interrupted, None
-        if not self.fs_applied:
-            return  # the operator took over since: nothing to undo
+        applied, self.fs_applied = self.fs_applied, False
+        if not applied or not self.armed or self.mode not in (Mode.HOLD, Mode.RETURN):
+            self.event("failsafe", f"failsafes cleared; staying {self.mode.value}"
+                       + ("" if self.armed else " and disarmed: arm to go on"))
+            return  # the operator took over since, or the boat was stopped
         policy = self.cfg.failsafe.after_clear
         if policy == "resume" and interrupted is not None:
             mode, mission, leg = interrupted
@@ -666,7 +736,6 @@ class Supervisor:
                 self._set_mode(mode, "failsafes cleared: resuming", mission=mission,
                                start_leg=leg, point=self.home if mode is Mode.RETURN else None,
                                keep_operator=True)
-                self.fs_applied = False
                 return
             self.event("failsafe", f"cannot resume: {why}")
         if policy in ("hold", "resume"):
@@ -674,37 +743,44 @@ class Supervisor:
             if p is not None and not self._cannot(Mode.HOLD):
                 self._set_mode(Mode.HOLD, "failsafes cleared: holding here; send resume to "
                                "continue the mission", point=p, keep_operator=True)
-                self.fs_applied = False
                 return
-        self.event("failsafe", f"failsafes cleared; staying {self.mode.value}")
-        self.fs_applied = False
+        self._disarm("failsafes cleared: idle (failsafe.after_clear)")
 
     # --------------------------------------------------------------- status
 
+    def _shown_points(self) -> tuple[tuple[float, float], ...]:
+        """The waypoints of the lines mission loaded or running (its id changes with them)."""
+        m = self.mission if self.mode is Mode.LINES and self.mission is not None \
+            else self.loaded
+        if m is not self._shown[0]:
+            pts = mission_points(m, self.frame)
+            if pts != self._shown[1]:
+                self.mission_id += 1
+            self._shown = (m, pts)
+        return self._shown[1]
+
     def snapshot(self, now: float) -> VesselStatus:
-        devs: dict[str, DeviceSummary] = {}
-        for name, h in self.health.devices.items():
-            c = h.counters
-            ok = c.get("sentences_ok", 0) + c.get("status_ok", 0)
-            bad = sum(v for k, v in c.items() if k not in _NOT_REFUSALS)
-            age = None if h.last_ok_t is None else round(now - h.last_ok_t, 3)
-            devs[name] = DeviceSummary(h.state.value, h.reason, age, ok, bad, dict(c))
         counters = dict(self.counters_fn()) if self.counters_fn is not None else {}
         counters["bus_published"] = self.bus.published
         counters["bus_listener_errors"] = self.bus.listener_errors
         counters["commands_accepted"] = self.acks["accepted"]
         counters["commands_refused"] = self.acks["refused"]
+        counters["commands_rate_limited"] = self.buckets.limited
+        counters["command_faults"] = self.command_faults
+        counters["state_file_writes"] = self.state.writes
+        counters["state_file_write_errors"] = self.state.write_errors
         home_lat = home_lon = None
         if self.home is not None:
             home_lat, home_lon = self._home_geodetic(self.home)
         p = self.progress
         prog = MissionProgress(p.kind, p.name, p.leg, p.legs, p.complete, p.xtrack_m, p.along_m,
                                p.phase)
-        return VesselStatus(now, self.clock.utc(now), self.mode.value, self.armed or
-                            self.mode is not Mode.IDLE, prog,
-                            sorted(self.failsafes.active), devs,
+        points = self._shown_points()
+        return VesselStatus(now, self.clock.utc(now), self.mode.value, self.armed, prog,
+                            sorted(self.failsafes.active),
+                            device_summaries(self.health.devices, now),
                             self._components(), counters, self.directive.reason,
-                            home_lat, home_lon)
+                            home_lat, home_lon, points, self.mission_id)
 
     def _home_geodetic(self, home: tuple[float, float]) -> tuple[float, float]:
         """(lat, lon) degrees of ``home``, converted once per home (pymap3d costs
@@ -722,15 +798,21 @@ class Supervisor:
         return out
 
     async def run(self) -> None:
+        async with asyncio.TaskGroup() as tg:
+            tg.create_task(self.state.run(), name="supervisor.state_file")
+            tg.create_task(self._loop(), name="supervisor.loop")
+
+    async def _loop(self) -> None:
         clock = self.clock
         sup = self.cfg.supervisor
         self.bus.publish(self.directive)
-        self.event("mode", "supervisor started: mode idle"
+        self.event("mode", "supervisor started: mode idle, disarmed"
                    + (f"; last mission {self.saved.mission.name!r} can be resumed"
                       if self.saved and not self.saved.complete else ""))
         if self.boot.mission is not None and not self.boot.autostart:
             self.event("mission", f"mission {self.boot.mission.name!r} loaded; not started "
-                       "(mission.autostart = false): send mode lines or follow to start it")
+                       "(mission.autostart = false): arm, then send mode lines or follow to "
+                       "start it")
         dt = 1.0 / sup.rate_hz
         t0 = clock.now()
         next_directive = t0 + sup.directive_period_s
@@ -741,10 +823,13 @@ class Supervisor:
             await clock.sleep_until(t0 + k * dt)
             now = clock.now()
             self.evaluate(now)
+            for src, n in self.ack_events.overflow(now):
+                self.event("ack", f"{n} more acknowledgements to {src} in the last second "
+                           "not shown (each was answered)")
             if now >= next_directive:
                 d = self.directive  # the same directive, still meant
                 self.directive = Directive(now, d.seq, d.mode, d.mission, d.start_leg,
-                                           d.point, d.reason, d.since)
+                                           d.point, d.reason, d.since, d.armed)
                 self.bus.publish(self.directive)
                 next_directive = now + sup.directive_period_s
             if now >= next_status or self.status_due:

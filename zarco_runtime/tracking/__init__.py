@@ -7,14 +7,23 @@ publishes the :class:`~zarco_core.auv_messages.AuvTrack` it returns.
 
 Modules, in data-flow order:
 
-* :mod:`.messages` – AcousticEvent, BuoyStatus, AuvFix, AuvTrack, TrackFlags;
-* :mod:`.params` – TrackerParams / LblNetworkParams (also the config schema);
+* :mod:`zarco_core.auv_messages` – AcousticEvent, BuoyStatus, AuvFix, AuvTrack,
+  TrackFlags;
+* :mod:`.params` – TrackerParams / the derived Network (also the config schema);
+* :mod:`.timemap` – the acoustic UTC clock mapped onto the runtime clock;
 * :mod:`.cycles` – I/R/I cycle assembly with gates and drop counters;
-* :mod:`.fix` – ranges, emission time, motion-bias correction, circle fix;
+* :mod:`.fix` – ranges, emission time, motion-bias correction, circle and
+  least-squares fixes;
+* :mod:`.assembly` – a cycle's fix: motion-corrected circles, mirror choice,
+  the joint fix with the other beacons, range-only updates;
+* :mod:`.acquire` – mirror vote, (re)initialisation of the filter;
 * :mod:`.kalman` – constant-velocity Kalman filter with innovation gating;
 * :mod:`.imm` – interacting multiple models (straight, manoeuvring, turning);
+* :mod:`.maneuver` – manoeuvre detection (IMM state, cross-course CUSUM) and
+  the turn declaration;
 * :mod:`.rls` – recursive least squares with forgetting on the line model;
-* :mod:`.plan` – the AUV's a-priori plan: legs, corners, which leg it is on,
-  leaving and re-joining it, the corners its prediction reaches;
-* :mod:`.tracker` – the glue, track aging and lost declaration.
+* :mod:`.plan`, :mod:`.plan_geometry`, :mod:`.plan_progress` – the AUV's
+  a-priori plan: its legs and rounded corners, which leg the AUV is on, its
+  progress along the plan, leaving and re-joining it;
+* :mod:`.tracker` – the glue, track flags, aging and lost declaration.
 """

@@ -154,6 +154,14 @@ def circle_fix(net: Network, index: int, r_i: float, r_l: float,
     return CircleFix(mx - h * uy, my + h * ux, mx + h * uy, my - h * ux, gap, rho_i, rho_l)
 
 
+def range3(net: Network, index: int, x: float, y: float, depth_m: float) -> float:
+    """3-D range (m) from beacon ``index`` to the AUV at (x, y, depth) (NED m)."""
+    dx = x - net.north[index]
+    dy = y - net.east[index]
+    dz = depth_m - net.depth[index]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
 def range_jacobian(net: Network, index: int, x: float, y: float,
                    depth_m: float) -> tuple[float, float]:
     """∂r/∂(x, y) of the 3-D range from beacon ``index`` to (x, y, depth) — the

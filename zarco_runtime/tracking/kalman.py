@@ -22,8 +22,6 @@ from __future__ import annotations
 
 import math
 
-from zarco_runtime.tracking.plan import turn_velocity
-
 
 class CvKalman:
     """4-state constant-velocity Kalman filter (plain floats, no numpy)."""
@@ -104,11 +102,6 @@ class CvKalman:
         P[1][1] += pos_var
         P[2][2] += vel_var
         P[3][3] += vel_var
-
-    def turn_to(self, course_rad: float) -> None:
-        """Turn the velocity onto ``course_rad`` (rad), its speed kept (a corner of
-        the AUV's plan; :func:`~.plan.turn_velocity`)."""
-        turn_velocity(self.x, self.P, course_rad)
 
     def update(self, rows: list[tuple[float, float]], z: list[float], var: list[float],
                gate_chi2: float = math.inf, soft_chi2: float = math.inf) -> tuple[bool, float]:

@@ -1,45 +1,38 @@
-"""The AUV's a-priori plan: its legs and corners, where the AUV is on it, and
-whether it still flies it (paper V: the AUV describes a sequence of straight
-lines "according to an a priori mission plan, or defined on-the-fly in
-adaptive sampling missions").
+"""The AUV's a-priori plan in the tracker: which leg the AUV is on, its
+progress along the plan, and whether it still flies it (paper V: the AUV
+describes a sequence of straight lines "according to an a priori mission
+plan, or defined on-the-fly in adaptive sampling missions").
 
-Geometry (:class:`Plan`).  The plan's points, local NED (x north, y east,
-metres), are joined by legs; the path coordinate ``s`` is the arc length along
-the legs from the first point (m); corner k joins leg k to leg k + 1 and turns
-the course by ``turn_rad(k)`` (+ to starboard, in (−π, π]).  Before the first
-point and after the last the path goes on straight along the first and last
-legs.
+The geometry (legs, corners, the plan rounded with the AUV's turning radius)
+is :mod:`.plan_geometry`; the progress along the plan (a filter of the path
+coordinate and speed, fed with the fixes) is :mod:`.plan_progress`.
 
-Matching (:class:`PlanMatcher`), fed with the tracker's filtered state (the
-AUV's position, velocity and position σ, at the filter's time) after every
-accepted update:
+:class:`PlanMatcher` is fed by the tracker with every two-circle fix
+(:meth:`PlanMatcher.fix`: the progress) and with its filtered state after
+every accepted update (:meth:`PlanMatcher.update`: the matching):
 
 * ``none``: no plan;
 * ``search``: a plan, the AUV not on it.  A leg fits when the position is
   within ``cross_gate_m`` + 2σ of it and between its ends, and the AUV's
   course (moving faster than ``min_speed_mps``) is within ``course_gate_deg``
-  of the leg's; one leg fitting for ``join_after_s`` puts the AUV on it
-  (event ``AUV on its plan``);
-* ``on`` leg k: the AUV moves on to leg k + 1 (k + 2 past a leg shorter than
-  the corner zone) once it is within ``corner_zone_m`` of the corner and fits
-  the next leg.  Anywhere else it must fit leg k (in the zones about its
-  corners any course passes: the AUV turns there).  Not fitting for
+  of the leg's; an AUV hovering at the plan's first point fits its first leg.
+  One leg fitting for ``join_after_s`` puts the AUV on it (event ``AUV on
+  its plan``) and starts its progress there;
+* ``on`` leg k: the leg follows the progress along the plan (never back), or
+  the filter's state fitting the next leg near the corner.  The AUV must fit
+  its leg: within ``cross_gate_m`` + 2σ of it (plus half its turning radius
+  about a corner, which it rounds), on its course outside the zones of
+  ``corner_zone_m`` (or 1.2 turning radii) about its corners (where it
+  turns), not past the corner's zone without turning.  Misfitting for
   ``leave_after_s`` — off its leg, on another course (an early turn, a leg
-  the plan does not have), or past the corner's zone without turning (a late
-  turn, a skipped corner) — it has left the plan: event ``AUV left its plan``
-  with the reason, and the matcher searches again; re-joining any leg later
-  (the fit above) puts it back on.
+  the plan does not have), a late turn, a skipped corner — it has left the
+  plan: event ``AUV left its plan`` with the reason, and the matcher searches
+  again; re-joining any leg later puts it back on (``AUV back on its plan``).
 
-Turns anticipated (:meth:`PlanMatcher.corner`): while the AUV is on leg k,
-the tracker asks, before it predicts its filter forward, whether the filter's
-straight-line prediction reaches corner k within the interval; if so it
-predicts to that instant, turns the filter's velocity onto leg k + 1's course
-(its speed kept) and opens up its covariance by ``corner_vel_sigma_mps`` and
-``corner_pos_sigma_m``, so that the fixes after the corner confirm a turn
-already made instead of discovering it several seconds late.  If the AUV did
-not turn, those fixes pull the filter back (the covariance was opened for
-that), and the matcher, finding the AUV off leg k + 1, declares it off the
-plan.
+The tracker's :class:`~zarco_core.auv_messages.AuvTrack` carries the leg,
+the progress and the offset from the plan (:meth:`PlanMatcher.track_fields`);
+the follow guidance follows the AUV along its plan from there, round its
+corners as the AUV turns them.
 
 Pure and deterministic: no I/O, no clocks; times are any one clock (s).
 """
@@ -49,19 +42,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from zarco_core.auv_messages import AuvFix
+from zarco_core.auv_messages import AuvFix, AuvTrack
 from zarco_core.config import spec
 from zarco_runtime.tracking.plan_geometry import (
     MAX_POINTS,
     Plan,
+    PlanError,
     PlanLeg,
     check_points,
     geodetic_plan,
 )
 from zarco_runtime.tracking.plan_progress import AlongPlan
 
-__all__ = ["MAX_POINTS", "AlongPlan", "CornerTurn", "Plan", "PlanLeg", "PlanMatcher",
-           "PlanParams", "check_points", "geodetic_plan", "turn_velocity"]
+__all__ = ["MAX_POINTS", "AlongPlan", "Plan", "PlanError", "PlanLeg", "PlanMatcher",
+           "PlanParams", "check_points", "geodetic_plan"]
 
 @dataclass(slots=True)
 class PlanParams:
@@ -80,14 +74,6 @@ class PlanParams:
                                "to be on it", min=0.0, max=600.0)
     leave_after_s: float = spec(4.0, "s", "the AUV must misfit its leg this long before it "
                                 "is taken to have left the plan", min=0.0, max=600.0)
-    corner_vel_sigma_mps: float = spec(0.3, "m/s", "velocity 1σ added to the filter when it "
-                                       "is turned onto the next leg at a corner",
-                                       min=0.0, max=10.0)
-    corner_pos_sigma_m: float = spec(1.0, "m", "position 1σ added to the filter at a corner",
-                                     min=0.0, max=100.0)
-    anticipate: bool = spec(True, "", "turn the tracker's filter onto the next leg when its "
-                            "prediction reaches a corner (off: the plan only tells which leg "
-                            "the AUV is on)")
     along_accel_psd: float = spec(0.01, "m²/s³", "the AUV's progress along its plan: white "
                                   "acceleration density of its speed along the path",
                                   min=1e-6, max=10.0)
@@ -98,16 +84,6 @@ class PlanParams:
     turn_radius_m: float = spec(6.0, "m", "the AUV's turning radius until its first corners "
                                 "show it (the plan's corners are rounded with it)",
                                 min=0.0, max=18.0)
-
-
-@dataclass(frozen=True, slots=True)
-class CornerTurn:
-    """A corner the filter's prediction reaches: at time ``t`` (s), the end of leg
-    ``leg``, where the course becomes ``course_rad`` (the next leg's)."""
-
-    t: float
-    leg: int
-    course_rad: float
 
 
 @dataclass(slots=True)
@@ -138,7 +114,6 @@ class PlanMatcher:
     _cand_since: float = math.nan
     _bad_since: float = math.nan
     _bad_reason: str = ""
-    _corner_done: int = -1
     _last_t: float = -math.inf
     #: the AUV's progress along the plan while it is on it
     along: AlongPlan | None = None
@@ -160,7 +135,6 @@ class PlanMatcher:
         self.along = None
         self._reset_search()
         self._bad_since = math.nan
-        self._corner_done = -1
         if not points:
             if had:
                 self.events.append("AUV plan cleared; tracking without it")
@@ -223,16 +197,21 @@ class PlanMatcher:
         al.fix(fix, p.along_window_m, p.along_floor_m)
         self._advance()
 
-    def track_fields(self, t: float) -> tuple[int, float, float, float, float]:
-        """What an AuvTrack says of the plan at time ``t`` (s, the track's time
-        origin): the leg, the path coordinate (m), the speed along the path
-        (m/s), the offset from the plan (m), the AUV's turning radius (m); −1 and
-        NaN off the plan."""
+    def stamp(self, track: AuvTrack) -> AuvTrack:
+        """``track`` (before it is published) with what it says of the plan at
+        its time origin ``t0_utc_s``: the leg, the path coordinate (m), the speed
+        along the path (m/s), the offset from the plan (m), the AUV's turning
+        radius (m); −1 and NaN off the plan."""
         al = self.along
         if self.leg < 0 or al is None or self.plan is None:
-            return -1, math.nan, math.nan, math.nan, math.nan
-        s = self.plan.advance(al.s, al.u * (t - al.t), al.radius) if t != al.t else al.s
-        return self.leg, s, al.u, al.cross + al.cross_rate * (t - al.t), al.radius
+            return track
+        dt = track.t0_utc_s - al.t
+        track.plan_leg = self.leg
+        track.plan_s_m = self.plan.advance(al.s, al.u * dt, al.radius) if dt else al.s
+        track.plan_speed_mps = al.u
+        track.plan_cross_m = al.cross + al.cross_rate * dt
+        track.plan_turn_radius_m = al.radius
+        return track
 
     def leave(self) -> None:
         """The track is lost: match again once it is back (no event: the loss
@@ -293,7 +272,6 @@ class PlanMatcher:
         self.leg = best
         self._reset_search()
         self._bad_since = math.nan
-        self._corner_done = best - 1
         self.joined += 1
         n = len(plan.legs)
         self.events.append(("AUV back on its plan" if self.left else "AUV on its plan")
@@ -364,52 +342,3 @@ class PlanMatcher:
         self._bad_since = math.nan
         self._reset_search()
         self.events.append(f"AUV left its plan ({reason}); tracking without it")
-
-    # -------------------------------------------------------- anticipation
-
-    def corner(self, t_from: float, x: float, y: float, vx: float, vy: float,
-               t_to: float) -> CornerTurn | None:
-        """The corner the straight-line prediction from (x, y) at ``t_from`` with
-        (vx, vy) reaches by ``t_to`` (s), while the AUV is on the plan, each
-        corner once; None if none.  The leg then advances to the next, so a
-        prediction through several corners asks again from the turn."""
-        plan = self.plan
-        k = self.leg
-        if (plan is None or k < 0 or k + 1 >= len(plan.legs) or self._corner_done >= k
-                or not self.params.anticipate):
-            return None
-        leg = plan.legs[k]
-        along, _ = leg.project(x, y)
-        rate = vx * leg.ux + vy * leg.uy
-        if rate < self.params.min_speed_mps:
-            return None
-        t_c = t_from + max(0.0, leg.length_m - along) / rate
-        if t_c > t_to:
-            return None
-        self._corner_done = k
-        self.leg = k + 1
-        self._bad_since = math.nan
-        return CornerTurn(t_c, k, plan.legs[k + 1].course_rad)
-
-
-def turn_velocity(x: list[float], P: list[list[float]], course_rad: float) -> None:
-    """Turn the velocity of a filter state in place onto ``course_rad`` (rad,
-    clockwise from north), keeping its speed: x = (x, y, vx, vy, …) and its
-    covariance ``P`` (rows and columns 2, 3 rotated with the velocity, so its
-    uncertainty keeps its shape relative to the course).  A turn-rate state
-    (index 4) is zeroed: the AUV flies the next leg straight."""
-    vx, vy = x[2], x[3]
-    v = math.hypot(vx, vy)
-    d = course_rad - math.atan2(vy, vx) if v > 0.0 else 0.0
-    c, s = math.cos(d), math.sin(d)
-    x[2], x[3] = v * math.cos(course_rad), v * math.sin(course_rad)
-    if len(x) > 4:
-        x[4] = 0.0
-    n = len(P)
-    for row in P:  # P Rᵀ: columns 2, 3
-        a, b = row[2], row[3]
-        row[2], row[3] = c * a - s * b, s * a + c * b
-    r2, r3 = P[2], P[3]
-    for j in range(n):  # R P: rows 2, 3
-        a, b = r2[j], r3[j]
-        r2[j], r3[j] = c * a - s * b, s * a + c * b

@@ -115,22 +115,38 @@ class Arc:
         return 2.0 * self.a / (self.r * abs(self.theta))
 
 
-def check_points(points: list[tuple[float, float]]) -> str:
-    """Why these NED points (m) are not a plan ("" when they are): 2 to
+class PlanError(ValueError):
+    """Why some points are not a plan: the point (``index``, None for the whole
+    list) and the ``reason``; :meth:`named` says it of a key."""
+
+    def __init__(self, index: int | None, reason: str) -> None:
+        super().__init__(reason if index is None else f"[{index}]: {reason}")
+        self.index = index
+        self.reason = reason
+
+    def named(self, key: str) -> str:
+        """``key[i]: reason`` (``key: reason`` for the whole list)."""
+        return f"{key}: {self.reason}" if self.index is None else \
+            f"{key}[{self.index}]: {self.reason}"
+
+
+def check_points(points: list[tuple[float, float]]) -> PlanError | None:
+    """Why these NED points (m) are not a plan (None when they are): 2 to
     ``MAX_POINTS`` finite points, within ``MAX_RANGE_M`` of the origin,
     consecutive ones at least ``MIN_LEG_M`` apart."""
     if len(points) > MAX_POINTS:
-        return f"has {len(points)} points, at most {MAX_POINTS}"
+        return PlanError(None, f"has {len(points)} points, at most {MAX_POINTS}")
     if len(points) == 1:
-        return "a plan needs at least 2 points (or none)"
+        return PlanError(None, "a plan needs at least 2 points (or none)")
     for i, (n, e) in enumerate(points):
         if not (math.isfinite(n) and math.isfinite(e)):
-            return f"point {i} is not finite"
+            return PlanError(i, "not finite")
         if math.hypot(n, e) > MAX_RANGE_M:
-            return f"point {i} is {math.hypot(n, e) / 1000.0:.0f} km from the origin"
+            return PlanError(i, f"{math.hypot(n, e) / 1000.0:.0f} km from the origin (at most "
+                                f"{MAX_RANGE_M / 1000.0:.0f} km)")
         if i and math.hypot(n - points[i - 1][0], e - points[i - 1][1]) < MIN_LEG_M:
-            return f"points {i - 1} and {i} are less than {MIN_LEG_M:g} m apart"
-    return ""
+            return PlanError(i, f"less than {MIN_LEG_M:g} m from point {i - 1}")
+    return None
 
 
 class Plan:
@@ -144,8 +160,10 @@ class Plan:
                  ) -> None:
         pts = [(float(n), float(e)) for n, e in points]
         why = check_points(pts)
-        if why or len(pts) < 2:
-            raise ValueError(why or "a plan needs at least 2 points")
+        if why is not None:
+            raise why
+        if len(pts) < 2:
+            raise PlanError(None, "a plan needs at least 2 points")
         self.points = tuple(pts)
         legs: list[PlanLeg] = []
         s = 0.0
@@ -308,22 +326,22 @@ def geodetic_plan(raw: object, to_ned: Callable[[float, float], tuple[float, flo
                   ) -> tuple[tuple[float, float], ...]:
     """An operator's plan ``[[lat_deg, lon_deg], ...]`` (a command's
     ``auv_plan``) as NED points (m) through ``to_ned``; an empty list is no
-    plan.  Raises ValueError naming the point and what is wrong with it."""
+    plan.  Raises :class:`PlanError` naming the point and what is wrong."""
     if not isinstance(raw, (list, tuple)):
-        raise ValueError(f"must be a list of [lat_deg, lon_deg], got {type(raw).__name__}")
+        raise PlanError(None, f"must be a list of [lat_deg, lon_deg], got {type(raw).__name__}")
     if len(raw) > MAX_POINTS:
-        raise ValueError(f"has {len(raw)} points, at most {MAX_POINTS}")
+        raise PlanError(None, f"has {len(raw)} points, at most {MAX_POINTS}")
     pts: list[tuple[float, float]] = []
     for i, p in enumerate(raw):
         if not (isinstance(p, (list, tuple)) and len(p) == 2
                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in p)):
-            raise ValueError(f"point {i} must be [lat_deg, lon_deg], got {p!r:.60}")
+            raise PlanError(i, f"must be [lat_deg, lon_deg], got {p!r:.60}")
         lat, lon = float(p[0]), float(p[1])
         if not (math.isfinite(lat) and math.isfinite(lon) and -90.0 <= lat <= 90.0
                 and -180.0 <= lon <= 180.0):
-            raise ValueError(f"point {i} is not a latitude, longitude: {p!r:.60}")
+            raise PlanError(i, f"not a latitude, longitude: {p!r:.60}")
         pts.append(to_ned(lat, lon))
     why = check_points(pts)
-    if why:
-        raise ValueError(why)
+    if why is not None:
+        raise why
     return tuple(pts)

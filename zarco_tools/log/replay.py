@@ -15,7 +15,11 @@ estimator and tracker took in:
   driver writes as ``$PZTHR`` again), ControlStatus, GuidanceStatus and the
   control task's faults;
 * the operator's commands and heartbeats, so that the supervisor takes the
-  same modes.
+  same modes;
+* every parameter change the boat accepted (``ParamChange``), applied to the
+  replay's configuration at its time, as the supervisor applied it then (the
+  ``param`` commands themselves are not played again: the recorded change is
+  what happened).
 
 The control task itself does not run (:class:`ReplayRuntime`): the boat moved
 under the commands it recorded, and the recorded bytes show that motion, so
@@ -53,6 +57,7 @@ from typing import Any
 from zarco_core.auv_messages import AuvFix, AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, VirtualTimeEventLoop
+from zarco_core.commands import CommandRefused, decode
 from zarco_core.component import ComponentContext, Runnable
 from zarco_core.config import apply_overrides, build
 from zarco_core.messages import (
@@ -62,10 +67,14 @@ from zarco_core.messages import (
     GuidanceStatus,
     NavState,
     OperatorHeartbeat,
+    ParamChange,
+    ParamValue,
     ThrusterCommand,
 )
 from zarco_runtime.runtime import Runtime
 from zarco_runtime.settings import RuntimeConfig
+from zarco_runtime.supervision.params import ParamRefused
+from zarco_runtime.supervision.params import apply as apply_param
 from zarco_runtime.supervision.supervisor import Boot, mission_from_json
 from zarco_tools.log.reader import Recording, iter_messages, rebuild
 
@@ -73,7 +82,8 @@ from zarco_tools.log.reader import Recording, iter_messages, rebuild
 CONTROL = {"/ThrusterCommand": ThrusterCommand, "/ControlStatus": ControlStatus,
            "/GuidanceStatus": GuidanceStatus, "/Fault": Fault}
 #: operator inputs, published again at their times
-OPERATOR = {"/Command": Command, "/OperatorHeartbeat": OperatorHeartbeat}
+OPERATOR = {"/Command": Command, "/OperatorHeartbeat": OperatorHeartbeat,
+            "/ParamChange": ParamChange}
 PLAYED = {**CONTROL, **OPERATOR}
 #: what is compared with the recording
 COMPARED = {"/NavState": NavState, "/AuvFix": AuvFix, "/AuvTrack": AuvTrack}
@@ -227,6 +237,22 @@ def replay_config(rec: Recording, overrides: list[str], record: str | None) -> R
     return build(RuntimeConfig, data, f"{rec.paths[0]} (recorded configuration)")
 
 
+def _param_value(v: Any) -> ParamValue:
+    out: ParamValue = [list(map(float, p)) for p in v] if isinstance(v, list) else v
+    return out
+
+
+def command_from_json(d: dict[str, Any]) -> Command | None:
+    """A recorded command with its typed arguments (None if they no longer decode:
+    a recording of an older runtime)."""
+    try:
+        name = str(d["name"])
+        args = decode(name, d.get("args") or {})
+        return Command(float(d["t"]), str(d["id"]), str(d["source"]), name, args)
+    except (CommandRefused, KeyError, TypeError, ValueError):
+        return None
+
+
 def _prune(d: Any) -> Any:
     """Drop nulls (a default stands for them: NaN/inf cannot be written as JSON)."""
     if isinstance(d, dict):
@@ -301,6 +327,16 @@ def load_inputs(rec: Recording) -> Inputs:
                     out.restamp_max_s = max(out.restamp_max_s, t - t0)
         elif topic in COMPARED:
             out.recorded[topic].append(rebuild(COMPARED[topic], d))
+        elif topic == "/ParamChange":
+            events.append((t, "", ParamChange(t, str(d["name"]), _param_value(d["value"]),
+                                              _param_value(d["old"]), str(d.get("source", "")),
+                                              str(d.get("id", "")))))
+            out.counts[topic] += 1
+        elif topic == "/Command":
+            cmd = command_from_json(d)
+            if cmd is not None and cmd.name != "param":
+                events.append((t, "", cmd))
+                out.counts[topic] += 1
         elif topic != "/Fault" or d.get("source") == "control":
             msg: Any = rebuild(PLAYED[topic], d)
             events.append((t, "", msg))
@@ -339,6 +375,10 @@ class ReplayResult:
     cut_t: float | None = None
     #: of ``wall_seconds``, the time spent reading the recording (s)
     read_seconds: float = 0.0
+    #: recorded parameter changes this replay's configuration refused (with --set)
+    params_refused: list[str] = field(default_factory=list)
+    #: why recording the replay (``--record``) stopped, if it did
+    record_error: str | None = None
 
     @property
     def speed(self) -> float:
@@ -362,6 +402,8 @@ def replay(rec: Recording, overrides: list[str] | None = None,
     start = min(rec.t0, events[0][0]) if events else rec.t0
     t_end = max(inp.t_last, start)
     late = [0]
+    refused_params: list[str] = []
+    record_errors: list[str] = []
 
     async def main() -> float:
         loop = asyncio.get_running_loop()
@@ -371,6 +413,8 @@ def replay(rec: Recording, overrides: list[str] | None = None,
         for topic, kind in COMPARED.items():
             bus.listen(kind, replayed[topic].append)
         bus.listen(ThrusterCommand, commands.append)
+        bus.listen(Fault, lambda f: record_errors.append(f.reason)
+                   if f.source == "recorder" else None)
         runtime = ReplayRuntime(cfg, bus, clock, ports, boot)
 
         async def at(t: float) -> None:
@@ -393,6 +437,11 @@ def replay(rec: Recording, overrides: list[str] | None = None,
                     ln.feed(item)
                     await ln.taken()
                 else:
+                    if isinstance(item, ParamChange):
+                        try:
+                            apply_param(cfg, item.name, item.value)
+                        except ParamRefused as exc:  # a --set made it invalid here
+                            refused_params.append(str(exc))
                     publish(item)
             await at(t_end)
             for _ in range(END_SPINS):  # what else happens at the last instant
@@ -423,7 +472,8 @@ def replay(rec: Recording, overrides: list[str] | None = None,
     return ReplayResult(cfg, inp.recorded, replayed, n_chunks, end - start, wall,
                         ports.written.get("thrusters", []), inp.thruster_tx,
                         dict(inp.counts), late[0], lost, inp.restamped, inp.restamp_max_s,
-                        inp.commands, commands, cut_t, read_s)
+                        inp.commands, commands, cut_t, read_s, refused_params,
+                        record_errors[0] if record_errors else None)
 
 
 class _Done(Exception):
@@ -499,6 +549,8 @@ def report(res: ReplayResult) -> dict[str, Any]:
         "wall_seconds": round(res.wall_seconds, 3), "speed_x_realtime": round(res.speed, 1),
         "read_seconds": round(res.read_seconds, 3),
         "inputs": res.inputs, "late": res.late, "lost": res.lost,
+        "params_applied": res.inputs.get("/ParamChange", 0) - len(res.params_refused),
+        "params_refused": res.params_refused,
         "restamped": res.restamped, "restamp_max_s": float(f"{res.restamp_max_s:.3g}"),
         "cut_short": cut is not None,
         "nav": {**nav, **pos},

@@ -2,13 +2,21 @@
 
     zarco shore [--connect EP]... [--config FILE] [--vessel NAME] COMMAND
 
-``status`` shows every vessel heard (live; ``--once`` prints one table);
-``stop``, ``mode``, ``mission FILE``, ``follow``, ``resume`` send one command
-and print the boat's acknowledgement or its reason for refusing; ``thrust``
-is manual teleoperation (renews the lease until stopped); ``rtcm SOURCE``
-relays RTK corrections.  ``status``, ``thrust`` and ``rtcm`` publish the
-operator heartbeat while they run (the boat's ``link lost`` failsafe watches
-it); one-shot commands do not, so that a single command does not arm it.
+``status`` shows every vessel heard (live; ``--once`` prints one table),
+armed or not; ``arm``, ``disarm``, ``stop``, ``mode``, ``mission FILE``,
+``follow``, ``resume``, ``param NAME VALUE`` send one command and print the
+boat's acknowledgement or its reason for refusing; ``thrust`` is manual
+teleoperation (renews the lease until stopped); ``rtcm SOURCE`` relays RTK
+corrections; ``web`` serves the live map to a browser; ``foxglove`` serves
+every vessel to Foxglove.
+
+The boat boots disarmed: nothing moves until ``zarco shore arm`` is accepted
+(it needs a valid position and heading, the thruster controller answering and
+no failsafe active, and says which is missing otherwise).  ``disarm`` and
+``stop`` go idle and disarmed.  ``status``, ``thrust``, ``rtcm`` (and ``web``
+while a page is open) publish the operator heartbeat while they run (the
+boat's ``link lost`` failsafe watches it); one-shot commands do not, so that
+a single command does not arm it.
 
 Exit status: 0 done / accepted; 1 refused by the boat; 2 configuration or
 connection problem; 3 no reply (not an operator on that boat, or the vessel
@@ -69,6 +77,27 @@ def _one(args: argparse.Namespace, name: str, cmd_args: dict[str, Any]) -> int:
 
 def cmd_stop(args: argparse.Namespace) -> int:
     return _one(args, "stop", {})
+
+
+def cmd_arm(args: argparse.Namespace) -> int:
+    return _one(args, "arm", {})
+
+
+def cmd_disarm(args: argparse.Namespace) -> int:
+    return _one(args, "disarm", {})
+
+
+def param_value(text: str) -> Any:
+    """A parameter's value as typed: JSON (``15``, ``2.5``, ``true``, ``[[41.1, -8.6],
+    ...]``), or else the text itself (``hold``)."""
+    try:
+        return json.loads(text)
+    except ValueError:
+        return text
+
+
+def cmd_param(args: argparse.Namespace) -> int:
+    return _one(args, "param", {"name": args.name, "value": param_value(args.value)})
 
 
 def cmd_follow(args: argparse.Namespace) -> int:
@@ -337,11 +366,22 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="latest events shown per vessel")
     s.set_defaults(shore_func=cmd_status)
 
-    for name, fn, text in (("stop", cmd_stop, "stop: idle, zero thrust (always accepted)"),
+    for name, fn, text in (("arm", cmd_arm, "arm: allow thrust (checks position, heading, "
+                            "thrusters, failsafes)"),
+                           ("disarm", cmd_disarm, "disarm: idle, zero thrust"),
+                           ("stop", cmd_stop, "stop: idle, zero thrust, disarmed (always "
+                            "accepted)"),
                            ("follow", cmd_follow, "follow the AUV"),
                            ("resume", cmd_resume, "resume the last mission")):
         x = ss.add_parser(name, parents=[common()], help=text)
         x.set_defaults(shore_func=fn)
+
+    pa = ss.add_parser("param", parents=[common()],
+                       help="set a parameter of the running configuration (refused while "
+                       "under way where unsafe)")
+    pa.add_argument("name", help="a dotted configuration key, e.g. failsafe.link_lost_s")
+    pa.add_argument("value", help="its value: a number, true/false, a word, or JSON")
+    pa.set_defaults(shore_func=cmd_param)
 
     m = ss.add_parser("mode", parents=[common()], help="set the mode (hold: optionally at a point)")
     m.add_argument("mode", choices=["idle", "manual", "lines", "follow", "hold", "return"])
@@ -382,3 +422,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     r.add_argument("--report-s", type=float, default=5.0, metavar="S",
                    help="progress line every S seconds (stderr)")
     r.set_defaults(shore_func=cmd_rtcm)
+
+    from zarco_tools.shore.foxglove.cli import add_parser as add_foxglove
+    from zarco_tools.shore.web.cli import add_parser as add_web
+
+    add_web(ss, common)
+    add_foxglove(ss, common)

@@ -35,7 +35,9 @@ def row(v: VesselView, now: float | None = None) -> dict[str, str]:
             auv += " old"
     return {
         "vessel": v.name,
-        "mode": str(s.get("mode", "?")) + ("" if s.get("armed", True) else " (disarmed)"),
+        "mode": str(s.get("mode", "?")),
+        "armed": ("—" if not isinstance(s.get("armed"), bool)
+                  else "ARMED" if s["armed"] else "disarmed"),
         "position": (f"{s['lat_deg']:.6f}, {s['lon_deg']:.6f}"
                      if s.get("lat_deg") is not None and s.get("lon_deg") is not None else "—"),
         "fix": str(s.get("fix", "—")),
@@ -52,7 +54,7 @@ def row(v: VesselView, now: float | None = None) -> dict[str, str]:
     }
 
 
-COLUMNS = ("vessel", "mode", "position", "fix", "hdg/sog", "leg", "xtrack", "u1/u2", "auv",
+COLUMNS = ("vessel", "mode", "armed", "position", "fix", "hdg/sog", "leg", "xtrack", "u1/u2", "auv",
            "devices", "failsafes", "link")
 
 
@@ -93,7 +95,7 @@ def rich_view(vessels: dict[str, VesselView], endpoints: list[str], events: int 
 
     table = Table(title="zarco shore — " + ", ".join(endpoints), expand=True)
     for c in COLUMNS:
-        table.add_column(c, no_wrap=c in ("vessel", "mode", "position"))
+        table.add_column(c, no_wrap=c in ("vessel", "mode", "armed", "position"))
     for _, v in sorted(vessels.items()):
         r = row(v)
         style = ""

@@ -13,6 +13,10 @@ and writes what the loop queued.  The loop never waits for it:
   cannot keep up, the oldest telemetry is dropped (and counted), so a slow or
   stalled GCS costs the runtime nothing but the drops.
 
+A message is sent as the boat (``system_id``, ``component_id``) unless it is
+queued with another source: the endpoint also speaks for the tracked AUV, a
+second system, and each source has its own sequence numbers.
+
 Each connection has its own ``common.MAVLink`` object (sequence numbers,
 signing state), used by its thread only.  With a signing key every message
 sent is signed; received messages are all parsed, and ``msg._signed`` says
@@ -45,6 +49,9 @@ MAX_REPLIES = 4096
 MAX_TELEMETRY = 256
 REOPEN_MIN_S = 0.5
 REOPEN_MAX_S = 5.0
+
+#: who a message is sent as: (system id, component id)
+Source = tuple[int, int]
 
 
 class SignedMAVLink(mav.MAVLink):  # type: ignore[misc]
@@ -85,8 +92,11 @@ class Link:
         self.key = key
         self.loop = loop
         self.on_messages = on_messages
-        self._replies: collections.deque[Any] = collections.deque()
-        self._telemetry: collections.deque[Any] = collections.deque(maxlen=MAX_TELEMETRY)
+        self._replies: collections.deque[tuple[Any, Source | None]] = collections.deque()
+        self._telemetry: collections.deque[tuple[Any, Source | None]] = collections.deque(
+            maxlen=MAX_TELEMETRY)
+        #: the next sequence number of each source other than the boat (thread side)
+        self._seqs: dict[Source, int] = {}
         self._stop = threading.Event()
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
@@ -131,19 +141,20 @@ class Link:
         self._thread.join(timeout_s)
         return not self._thread.is_alive()
 
-    def send(self, msg: Any, reply: bool = True) -> None:
-        """Queue ``msg`` (a pymavlink message object, not shared with another link)."""
+    def send(self, msg: Any, reply: bool = True, source: Source | None = None) -> None:
+        """Queue ``msg`` (a pymavlink message object, not shared with another link),
+        sent as ``source`` (system, component; None: the boat)."""
         if self._stopping:
             return
         if reply:
             if len(self._replies) >= MAX_REPLIES:
                 self.dropped_replies += 1
                 return
-            self._replies.append(msg)
+            self._replies.append((msg, source))
         else:
             if len(self._telemetry) == self._telemetry.maxlen:
                 self.dropped_telemetry += 1
-            self._telemetry.append(msg)
+            self._telemetry.append((msg, source))
         self._wake()
 
     def _wake(self) -> None:
@@ -261,18 +272,34 @@ class Link:
         for q in (self._replies, self._telemetry):
             while q:
                 try:
-                    msg = q.popleft()
+                    msg, source = q.popleft()
                 except IndexError:
                     break
                 try:
-                    buf = msg.pack(m)
+                    buf = self._pack(m, msg, source)
                 except Exception as exc:
                     self._error(f"cannot pack {msg.get_type()}: {exc}")
                     continue
-                m.seq = (m.seq + 1) % 256
                 try:
                     conn.write(buf)
                 except OSError as exc:
                     self._error(f"{self.url}: write: {exc}")
                 self.sent += 1
                 self.bytes_out += len(buf)
+
+    def _pack(self, m: Any, msg: Any, source: Source | None) -> bytes:
+        """``msg`` packed as ``source`` (None: the boat), with that source's
+        sequence number."""
+        if source is None:
+            buf = bytes(msg.pack(m))
+            m.seq = (m.seq + 1) % 256
+            return buf
+        own = (m.srcSystem, m.srcComponent, m.seq)
+        m.srcSystem, m.srcComponent = source
+        m.seq = self._seqs.get(source, 0)
+        try:
+            buf = bytes(msg.pack(m))
+            self._seqs[source] = (m.seq + 1) % 256
+        finally:
+            m.srcSystem, m.srcComponent, m.seq = own
+        return buf

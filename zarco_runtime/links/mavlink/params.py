@@ -74,7 +74,7 @@ TABLE: tuple[tuple[str, str, str], ...] = (
     ("FS_AUV_LOST_S", "failsafe", "auv_lost_s"),
     ("FS_COMP_FAIL", "failsafe", "component_failed"),
     ("FS_COMP_FAIL_S", "failsafe", "component_failed_s"),
-    ("FS_CLEAR_S", "failsafe", "clear_s"),
+    ("FS_CLEAR_S", "failsafe", "clear_after_s"),
     ("FS_AFTER_CLEAR", "failsafe", "after_clear"),
     ("SUP_LEASE_S", "supervisor", "manual_lease_s"),
     ("SUP_MAX_SPD_MPS", "supervisor", "max_speed_mps"),

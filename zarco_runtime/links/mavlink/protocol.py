@@ -35,6 +35,7 @@ and ArduPilot send it); they are mixed as ``U1 = (x + r) / 10``, ``U2 = (x − r
 
 from __future__ import annotations
 
+import math
 import os
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -45,7 +46,7 @@ from pymavlink.dialects.v20 import common as mav
 from zarco_core.messages import Mode
 
 __all__ = ["CUSTOM_MODE", "MODE_OF_CUSTOM", "base_mode", "event_severity", "mav", "mix_manual",
-           "text_chunks", "thrust_to_pwm"]
+           "text_chunks", "thrust_to_pwm", "whole"]
 
 #: custom_mode number of each supervisor mode (see the module docstring)
 CUSTOM_MODE: dict[Mode, int] = {
@@ -63,6 +64,14 @@ PWM_NEUTRAL_US = 1500
 PWM_PER_PERCENT = 4.0
 INT16_MAX = 32767
 UINT16_MAX = 65535
+
+
+def whole(x: float, lo: int, hi: int) -> int | None:
+    """``x`` (a command's float parameter) as an integer within ``lo..hi``; None
+    when it is not a whole number there (NaN, infinite, fractional, out of range)."""
+    if not math.isfinite(x) or x != math.floor(x) or not lo <= x <= hi:
+        return None
+    return int(x)
 
 
 def thrust_to_pwm(u: float) -> int:
@@ -120,19 +129,34 @@ def event_severity(kind: str, text: str) -> int:
     return int(SEVERITY.get(kind, mav.MAV_SEVERITY_INFO))
 
 
+#: characters in one STATUSTEXT
 STATUSTEXT_LEN = 50
+#: most chunks of one text (MAVLink 2's ``chunk_seq`` is a byte: at most 256); a
+#: longer text is cut, ending in "..."
+STATUSTEXT_MAX_CHUNKS = 10
+#: the longest text sent whole: one character short of the last chunk, so a cut
+#: text ends with a short chunk and needs no empty one
+STATUSTEXT_MAX_LEN = STATUSTEXT_MAX_CHUNKS * STATUSTEXT_LEN - 1
+ELLIPSIS = b"..."
 #: STATUSTEXT is ASCII for most ground stations: the runtime's few other characters
 ASCII = str.maketrans({"≥": ">=", "≤": "<=", "°": " deg", "×": "x", "→": "->", "←": "<-",
                        "−": "-", "–": "-", "—": "-", "σ": "sigma", "ψ": "psi", "±": "+/-",
                        "·": "*", "…": "..."})
+#: control characters (a NUL would end the text early; escapes reach a terminal)
+CONTROL = bytes(range(32)) + b"\x7f"
+UNPRINTABLE = bytes.maketrans(CONTROL, b"?" * len(CONTROL))
 
 
 def text_chunks(text: str) -> list[bytes]:
-    """``text`` as STATUSTEXT chunks of at most 50 ASCII characters (others
-    spelt out, or ``?``).  MAVLink 2 joins chunks sharing an ``id`` by
+    """``text`` as STATUSTEXT chunks of at most 50 printable ASCII characters
+    (others spelt out, or ``?``).  MAVLink 2 joins chunks sharing an ``id`` by
     ``chunk_seq``; a chunk shorter than 50 ends the text, so a long text of a
-    whole number of chunks gets an empty last one."""
-    b = text.translate(ASCII).encode("ascii", "replace")
+    whole number of chunks gets an empty last one.  At most
+    :data:`STATUSTEXT_MAX_CHUNKS` chunks: a longer text is cut to
+    :data:`STATUSTEXT_MAX_LEN` characters, the last three ``...``."""
+    b = text.translate(ASCII).encode("ascii", "replace").translate(UNPRINTABLE)
+    if len(b) > STATUSTEXT_MAX_LEN:
+        b = b[:STATUSTEXT_MAX_LEN - len(ELLIPSIS)] + ELLIPSIS
     out = [b[i:i + STATUSTEXT_LEN] for i in range(0, len(b), STATUSTEXT_LEN)] or [b""]
     if len(out) > 1 and len(out[-1]) == STATUSTEXT_LEN:
         out.append(b"")

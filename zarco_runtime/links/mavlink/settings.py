@@ -89,8 +89,15 @@ class MavlinkSettings:
                                       "(0: only on request); unset ones keep their defaults: "
                                       + ", ".join(f"{k} {v:g}" for k, v in STREAMS.items()),
                                       min=0.0, max=MAX_RATE_HZ)
+    auv_system_id: int = spec(0, "", "the MAVLink system id of the tracked AUV, which the "
+                              "endpoint also speaks for (0: the boat's system_id + 1)",
+                              min=0, max=255)
     mission_speed_mps: float = spec(1.0, "m/s", "speed of an uploaded mission that has no "
                                     "DO_CHANGE_SPEED item", min=0.05, max=3.0)
+
+    def auv_sysid(self) -> int:
+        """The AUV's system id (``auv_system_id``, or the boat's + 1)."""
+        return self.auv_system_id or self.system_id + 1
 
     def urls(self) -> list[str]:
         """The connection strings (``url`` as a list)."""
@@ -121,6 +128,12 @@ class MavlinkSettings:
             if not 0.0 <= hz <= MAX_RATE_HZ:
                 raise ValueError(f"rates_hz: {name} must be within 0..{MAX_RATE_HZ:g} Hz, "
                                  f"got {hz:g}")
+        auv = self.auv_sysid()
+        if self.enabled and not 1 <= auv <= 255:
+            raise ValueError(f"auv_system_id: the boat is system {self.system_id}, so the "
+                             "AUV cannot be the next one: set auv_system_id (1..255)")
+        if auv == self.system_id:
+            raise ValueError(f"auv_system_id: {auv} is the boat's system_id")
         if self.rates_hz.get("HEARTBEAT", 1.0) != 1.0:
             raise ValueError("rates_hz: HEARTBEAT is sent at 1 Hz")
         if self.signing_key_file:

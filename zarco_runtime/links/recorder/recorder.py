@@ -10,7 +10,9 @@ later.  Every ``flush_s`` the list is packed with one MessagePack call
 (:func:`.schema.packer`: C code, no float formatting) and goes, as one framed
 batch over a pipe, to the writer process (:mod:`.writer`), which turns each
 record into JSON, derives the map topics (``foxglove.LocationFix`` of the
-vessel and the AUV) and writes MCAP with a JSON schema per message type,
+vessel and the AUV) and the shore view's (``/shore/state``, ``/shore/auv``,
+``/foxglove/events``: what ``zarco shore foxglove`` shows live, so one Foxglove
+layout serves both) and writes MCAP with a JSON schema per message type,
 flushes chunks, rotates and watches the disk.
 
 Nothing in the control loop's path waits for a disk: the pipe is
@@ -59,16 +61,24 @@ from zarco_core.auv_messages import AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, VirtualTimeEventLoop
 from zarco_core.component import ComponentContext, Factory
-from zarco_core.messages import Event, Fault, NavState
+from zarco_core.messages import (
+    Event,
+    Fault,
+    GuidanceStatus,
+    NavState,
+    ThrusterCommand,
+    VesselStatus,
+)
+from zarco_runtime.guidance.directive import Directive
 from zarco_runtime.links.recorder import writer
 from zarco_runtime.links.recorder.schema import (
-    LOCATION_FIX_SCHEMA,
     OPTIONS,
     RAW_CHUNK_SCHEMA,
     message_schema,
     packer,
     plain,
     raw_chunk_type,
+    shared_schema,
 )
 from zarco_runtime.links.recorder.writer import BATCH, HEADER
 from zarco_runtime.supervision.supervisor import Boot, mission_to_json
@@ -80,6 +90,12 @@ log = logging.getLogger("zarco.recorder")
 
 #: topics of the derived foxglove.LocationFix positions (map panel)
 DERIVED = {NavState: "vessel", AuvTrack: "auv"}
+#: the shore view's topics derived from a type's records (shore_topics.py)
+SHORE = {NavState: ("state", "/shore/state"), AuvTrack: ("auv", "/shore/auv"),
+         Event: ("events", "/foxglove/events")}
+#: the types whose latest record the shore state needs
+WATCHED = {Directive: "directive", GuidanceStatus: "guidance", ThrusterCommand: "thrust",
+           VesselStatus: "status"}
 #: in simulation, the recorder hands a batch over this often (virtual time, s)
 SIM_PERIOD_S = 2.0
 #: loop turns a stopping recorder waits for the others' last messages
@@ -148,9 +164,14 @@ class Recorder:
         name = kind.__name__
         extra: dict[str, Any] = {}
         if kind in DERIVED:
-            fix = self._channel(f"/foxglove/{DERIVED[kind]}", "foxglove.LocationFix",
-                                json.dumps(LOCATION_FIX_SCHEMA).encode())
+            topic = f"/foxglove/{DERIVED[kind]}"
+            fix = self._channel(topic, *shared_schema(topic))
             extra = {"derive": [DERIVED[kind], fix]}
+        if kind in SHORE:
+            role, topic = SHORE[kind]
+            extra["shore"] = [role, self._channel(topic, *shared_schema(topic))]
+        if kind in WATCHED:
+            extra["watch"] = WATCHED[kind]
         try:
             schema = message_schema(kind)
         except Exception:  # not a dataclass: recorded, schema-less
@@ -239,6 +260,7 @@ class Recorder:
                  "max_file_mb": rc.max_file_mb, "min_free_mb": rc.min_free_mb,
                  "flush_s": rc.flush_s, "fsync_s": rc.fsync_s, "location_hz": rc.location_hz,
                  "origin": [o.lat_deg, o.lon_deg, o.alt_m], "first_part": self.parts,
+                 "vessel": self.cfg.shore.vessel,
                  "metadata": self._metadata()}
         data = [f for f in self.out if f[1] > 0]  # batches a dead writer did not take
         self.out.clear()

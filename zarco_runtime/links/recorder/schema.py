@@ -23,6 +23,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import enum
+import json
 import types
 import typing
 from typing import Any
@@ -228,3 +229,103 @@ LOCATION_FIX_SCHEMA: dict[str, Any] = {
                   "properties": {k: {"type": "number"} for k in ("r", "g", "b", "a")}},
     },
 }
+
+#: Foxglove's well-known log message (its Log panel): the vessel's events
+LOG_SCHEMA: dict[str, Any] = {
+    "title": "foxglove.Log",
+    "description": "An event of the vessel (mode change, failsafe, acknowledgement, fault)",
+    "type": "object",
+    "properties": {
+        "timestamp": {**_TIME, "description": "time of the event (UTC)"},
+        "level": {
+            "title": "foxglove.LogLevel",
+            "description": "severity: failsafes and faults are warnings, the rest information",
+            "oneOf": [{"title": "UNKNOWN", "const": 0}, {"title": "DEBUG", "const": 1},
+                      {"title": "INFO", "const": 2}, {"title": "WARNING", "const": 3},
+                      {"title": "ERROR", "const": 4}, {"title": "FATAL", "const": 5}],
+        },
+        "message": {"type": "string", "description": "the event's text"},
+        "name": {"type": "string", "description": "the event's kind (mode, failsafe, ack, "
+                                                  "fault, ...) and source: kind/source"},
+        "file": {"type": "string", "description": "unused (empty)"},
+        "line": {"type": "integer", "minimum": 0, "description": "unused (0)"},
+    },
+}
+
+_NUM = {"type": ["number", "null"]}
+
+#: the shore link's ``state`` object (5 Hz live; at ``location_hz`` in a recording)
+SHORE_STATE_SCHEMA: dict[str, Any] = {
+    "title": "zarco.shore.state",
+    "description": "The vessel's state as the shore link sends it (docs/protocols.md)",
+    "type": "object",
+    "properties": {
+        "t": {"type": "number", "description": "UTC seconds since 1970"},
+        "vessel": {"type": "string"},
+        "mode": {"type": "string", "enum": ["idle", "manual", "lines", "follow", "hold",
+                                            "return"]},
+        "armed": {"type": "boolean"},
+        "lat_deg": {**_NUM, "description": "latitude (deg, WGS-84)"},
+        "lon_deg": {**_NUM, "description": "longitude (deg, WGS-84)"},
+        "heading_deg": {**_NUM, "description": "true heading (deg, clockwise from north)"},
+        "course_deg": {**_NUM, "description": "course over ground (deg)"},
+        "speed_mps": {**_NUM, "description": "speed over ground (m/s)"},
+        "fix": {"type": "string", "enum": ["none", "single", "dgps", "rtk_float",
+                                           "rtk_fixed"]},
+        "pos_valid": {"type": "boolean"},
+        "heading_valid": {"type": "boolean"},
+        "leg": {"type": ["integer", "null"], "description": "active leg, 0-based"},
+        "legs": {"type": "integer"},
+        "xtrack_m": {**_NUM, "description": "cross-track error (m, + to starboard)"},
+        "u1": {**_NUM, "description": "port thruster command (-100..100)"},
+        "u2": {**_NUM, "description": "starboard thruster command (-100..100)"},
+        "failsafes": {"type": "array", "items": {"type": "string"}},
+        "reason": {"type": "string"},
+    },
+}
+
+#: the shore link's ``auv`` object (per track update live; at most ``location_hz`` recorded)
+SHORE_AUV_SCHEMA: dict[str, Any] = {
+    "title": "zarco.shore.auv",
+    "description": "The AUV's estimate as the shore link sends it: the fitted line at t",
+    "type": "object",
+    "properties": {
+        "t": {"type": "number", "description": "UTC seconds since 1970"},
+        "lat_deg": {**_NUM, "description": "latitude (deg, WGS-84)"},
+        "lon_deg": {**_NUM, "description": "longitude (deg, WGS-84)"},
+        "course_deg": {**_NUM, "description": "the AUV's course (deg, clockwise from north)"},
+        "speed_mps": {**_NUM, "description": "the AUV's speed (m/s)"},
+        "status": {"type": "string", "enum": ["acquiring", "tracking", "turning", "stale",
+                                              "lost"]},
+        "distance_m": {**_NUM, "description": "horizontal distance from the vessel (m)"},
+        "pos_cov_m2": {"type": ["array", "null"], "items": _NUM,
+                       "description": "position covariance [north², north·east, east²] (m²)"},
+    },
+}
+
+#: the topics a live shore view (``zarco shore foxglove``) and a recording share:
+#: topic → (schema name, schema)
+SHARED_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
+    "/foxglove/vessel": ("foxglove.LocationFix", LOCATION_FIX_SCHEMA),
+    "/foxglove/auv": ("foxglove.LocationFix", LOCATION_FIX_SCHEMA),
+    "/foxglove/events": ("foxglove.Log", LOG_SCHEMA),
+    "/shore/state": ("zarco.shore.state", SHORE_STATE_SCHEMA),
+    "/shore/auv": ("zarco.shore.auv", SHORE_AUV_SCHEMA),
+}
+
+
+def log_level(kind: str) -> int:
+    """The foxglove.Log level of an event of ``kind``."""
+    return 3 if kind in ("failsafe", "fault") else 2
+
+
+def foxglove_time(utc: float) -> dict[str, int]:
+    """A Foxglove time (``sec``, ``nsec``) of UTC seconds."""
+    sec = int(utc)
+    return {"sec": sec, "nsec": int((utc - sec) * 1e9)}
+
+
+def shared_schema(topic: str) -> tuple[str, bytes]:
+    """(schema name, schema data) of a topic shared by recordings and live views."""
+    name, schema = SHARED_TOPICS[topic]
+    return name, json.dumps(schema).encode()

@@ -11,7 +11,9 @@ Input frames (``<cI`` kind and body length, then the body):
 * ``J``: a JSON command: ``start`` (where and how to write, the metadata of
   every file), ``channel`` (a topic and its JSON schema; ``raw``: [device,
   "rx" or "tx"] for a device's raw bytes; ``derive``: ["vessel" or "auv",
-  the channel of its map topic]);
+  the channel of its map topic]; ``shore``: ["state", "auv" or "events", the
+  channel of the shore view's topic derived from it]; ``watch``: the name
+  under which its latest record is kept for those);
 * ``D``: a batch: ``<Id`` count n and UTC offset (UTC = runtime time +
   offset), then MessagePack: [the n channel ids, the n records], each record
   the map of a message's fields (a raw chunk's: ``t``, ``data``, ``device``,
@@ -21,7 +23,10 @@ Input frames (``<cI`` kind and body length, then the body):
 Each record becomes one MCAP message on its channel, logged at its UTC time,
 as JSON (msgspec; a raw chunk gains its ``utc_s``); every ``1/location_hz``
 a vessel estimate (NavState) or an AUV track (AuvTrack) also gives a
-``foxglove.LocationFix`` on the map topic the runtime named for it.
+``foxglove.LocationFix`` on the map topic the runtime named for it, and the
+shore view's ``/shore/state`` and ``/shore/auv`` (the shore link's objects,
+:mod:`zarco_runtime.links.recorder.shore_topics`); every event also gives a
+``foxglove.Log`` on ``/foxglove/events``.
 The MCAP files are written by Foxglove's SDK (``foxglove-sdk``: the Rust
 ``mcap`` writer, about a microsecond a message against four to five for the
 pure-Python ``mcap`` writer; the same format, which the ``mcap`` package
@@ -84,6 +89,11 @@ class Channel:
     raw: tuple[str, str] | None = None
     #: a map topic derived from this one's messages: "vessel" or "auv", its channel
     derive: tuple[str, int] | None = None
+    #: a shore view topic derived from this one's messages: "state", "auv" or
+    #: "events", its channel
+    shore: tuple[str, int] | None = None
+    #: the name under which this channel's latest record is kept (for the state)
+    watch: str = ""
 
 
 @dataclass(slots=True)
@@ -98,6 +108,7 @@ class Options:
     location_hz: float = 5.0
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
     first_part: int = 0
+    vessel: str = ""
     metadata: dict[str, str] = field(default_factory=dict)
 
 
@@ -252,6 +263,11 @@ class Recording:
         self.last_ns = 0
         self.raw_ids: set[int] = set()
         self.derive_ids: set[int] = set()
+        #: channels whose records derive or feed another topic (in record order)
+        self.special_ids: set[int] = set()
+        #: the latest record of each watched channel, and of the vessel estimate
+        self.latest: dict[str, Any] = {}
+        self.shore_topics: Any = None
         #: time of the next map fix, by the channel it is derived from
         self.next_fix: dict[int, float] = {}
         self.frame: Any = None
@@ -322,18 +338,21 @@ class Recording:
     # --------------------------------------------------------- messages
 
     def add_channel(self, d: dict[str, Any]) -> None:
-        raw, der = d.get("raw"), d.get("derive")
+        raw, der, sh = d.get("raw"), d.get("derive"), d.get("shore")
         ch = Channel(int(d["id"]), str(d["topic"]), str(d["schema_name"]), str(d["schema"]),
                      str(d.get("encoding", "json")), (str(raw[0]), str(raw[1])) if raw else None,
-                     (str(der[0]), int(der[1])) if der else None)
+                     (str(der[0]), int(der[1])) if der else None,
+                     (str(sh[0]), int(sh[1])) if sh else None, str(d.get("watch") or ""))
         while len(self.channels) <= ch.id:
             self.channels.append(None)
         self.channels[ch.id] = ch
         if ch.raw is not None:
             self.raw_ids.add(ch.id)
-        if ch.derive is not None:
+        if ch.derive is not None or (ch.shore is not None and ch.shore[0] != "events"):
             self.derive_ids.add(ch.id)
             self.next_fix[ch.id] = -math.inf
+        if ch.derive is not None or ch.shore is not None or ch.watch:
+            self.special_ids.add(ch.id)
 
     def batch(self, body: memoryview) -> None:
         n, offset = BATCH.unpack_from(body, 0)
@@ -386,16 +405,8 @@ class Recording:
                     self.untimed += 1
                     log(data, good)
                 written += 1
-            if self.derive_ids:
-                nxt = self.next_fix
-                for i in compress(range(n), map(self.derive_ids.__contains__, chans)):
-                    r = records[i]
-                    try:
-                        if not r["t"] >= nxt[chans[i]]:  # at most location_hz
-                            continue
-                        written += self._derive(f, chans[i], r, offset)
-                    except (LookupError, ArithmeticError, ValueError, TypeError):
-                        self.underived += 1  # no time, or values no map can show
+            if self.special_ids:
+                written += self._special(f, chans, records, offset)
         finally:
             self.last_ns = good
             f.messages += written
@@ -411,6 +422,68 @@ class Recording:
             return x
 
         return self.encode(plain(r))
+
+    def _special(self, f: McapFile, chans: list[int], records: list[Any],
+                 offset: float) -> int:
+        """The derived topics of a batch's records, in record order (a state takes the
+        latest directive, guidance, thrust and status recorded before it)."""
+        written = 0
+        nxt = self.next_fix
+        latest = self.latest
+        channels = self.channels
+        for i in compress(range(len(chans)), map(self.special_ids.__contains__, chans)):
+            c, r = chans[i], records[i]
+            ch = channels[c]
+            if ch is None:
+                continue
+            if ch.watch:
+                latest[ch.watch] = r
+                continue
+            try:
+                if ch.derive is not None and ch.derive[0] == "vessel":
+                    latest["nav"] = r
+                if ch.shore is not None and ch.shore[0] == "events":
+                    written += self._shore(f, ch.shore, r, offset)
+                    continue
+                if not r["t"] >= nxt[c]:  # at most location_hz
+                    continue
+                # (less 1 % of the period: a 20 Hz source's stamps, 0.2 s apart in
+                # theory, are sometimes a hair closer)
+                nxt[c] = float(r["t"]) + 0.99 / self.o.location_hz
+                if ch.derive is not None:
+                    written += self._derive(f, c, r, offset)
+                if ch.shore is not None:
+                    written += self._shore(f, ch.shore, r, offset)
+            except (LookupError, ArithmeticError, ValueError, TypeError):
+                self.underived += 1  # no time, or values no map can show
+        return written
+
+    def _shore(self, f: McapFile, shore: tuple[str, int], m: Any, offset: float) -> int:
+        """The shore view's object of a record on its topic: 1 if one was written."""
+        what, cid = shore
+        ch = self.channels[cid] if cid < len(self.channels) else None
+        if ch is None or not isinstance(m, dict):
+            return 0
+        if self.shore_topics is None:  # the shore link's own functions (imported once)
+            from zarco_core.geodesy import LocalFrame
+            from zarco_runtime.links.recorder import shore_topics
+
+            self.shore_topics = shore_topics
+            if self.frame is None:
+                self.frame = LocalFrame(*self.o.origin)
+        st = self.shore_topics
+        utc = float(m["t"]) + offset
+        if what == "state":
+            obj = st.state(self.o.vessel, utc, m, self.latest)
+        elif what == "auv":
+            obj = st.auv(utc, m, self.frame, self.latest.get("nav"))
+        else:
+            obj = st.log(utc, m)
+        try:
+            f.channel(ch)(self.encode(obj), int(utc * 1e9))
+        except (ValueError, OverflowError):  # a time beyond what MCAP holds
+            return 0
+        return 1
 
     def _derive(self, f: McapFile, c: int, m: Any, offset: float) -> int:
         """The map fix (``foxglove.LocationFix``) of a vessel estimate or an AUV
@@ -448,7 +521,6 @@ class Recording:
         fch = self.channels[fix_id] if fix_id < len(self.channels) else None
         if fch is None:
             return 0
-        self.next_fix[c] = t + 1.0 / self.o.location_hz
         try:
             utc = t + offset
             sec = int(utc)

@@ -2,14 +2,20 @@
 
 Out: ``zarco/<vessel>/state`` at ``state_hz``, ``health`` with every status
 snapshot (1 Hz), ``auv`` with every AUV track update, ``event`` with every
-event (payloads: :mod:`.telemetry`).  In: ``cmd/<name>`` queries, each sent
-to the supervisor as a :class:`~zarco_core.messages.Command` from
-``shore:<user>`` and answered with exactly one reply ``{"ok", "id", "mode",
-"reason"}``; the operator heartbeat ``operator`` (``{"t", "user"}``) becomes an
+event (payloads: :mod:`.telemetry`), ``map`` when it changes and every 10 s
+(:mod:`.map_info`; also the reply to a query on it).  A query on ``access``
+is answered ``{"role": "operator"}``: access control lets only operators
+query it, so a shore tool learns whether its credentials may command before
+offering commands.  In: ``cmd/<name>`` queries, each read and bounded
+(:mod:`.requests`), sent to the supervisor as a
+:class:`~zarco_core.messages.Command` from ``shore:<user>`` and answered
+with exactly one reply ``{"ok", "id", "mode", "reason"}``, whatever the
+payload; the operator heartbeat ``operator`` (``{"t", "user"}``) becomes an
 :class:`~zarco_core.messages.OperatorHeartbeat` (link ``shore``: the
-supervisor's ``link_lost`` failsafe does the rest); ``rtcm`` bytes become
-:class:`~zarco_core.messages.RtcmCorrections` for the GPS driver, which
-passes only whole, CRC-valid RTCM3 frames.
+supervisor's ``link_lost`` failsafe does the rest); ``rtcm`` bytes, within
+the byte budget ``rtcm_budget_bps``, become
+:class:`~zarco_core.messages.RtcmCorrections` of whole, CRC-valid RTCM3
+frames for the GPS driver (:mod:`.rtcm_relay`).
 
 A command query may carry a zenoh attachment, a JSON object with ``user``
 (the operator's name, for the command's source) and ``id`` (echoed in the
@@ -18,14 +24,20 @@ zenoh's access control (operators only); zenoh does not tell the application
 which authenticated user sent a query, so ``user`` is the name the client
 gives.
 
-Threads: zenoh calls its callbacks on its own threads.  They make no zenoh
-call; they only append to an inbox and wake the event loop once
-(``call_soon_threadsafe``), where
-commands, heartbeats and corrections go on the bus.  Everything sent (puts,
-replies) goes through one sender thread, so no zenoh call is ever made on
-the event loop and a slow network cannot hold the control loop.  The
-session is opened and closed on a worker thread, and always closed (zenoh
-1.x does not let a process with an open session exit).
+Threads: zenoh calls the queryable's callback on its own threads; it reads
+and bounds the query, refuses there and then ("busy", answered on that
+thread) a source's commands beyond ``commands_per_s`` (``stop`` excepted),
+and posts the rest to the :mod:`.inbox`, which the event loop drains in
+slices of a few milliseconds.  Heartbeats and RTCM are kept by zenoh in ring channels
+and read at a bounded pace by threads of their own (:mod:`.ring_reader`),
+so that a flood costs no Python work beyond that pace.  Each item is
+handled in isolation: an exception from one becomes a refusal (for a
+command) and a counted ``fault``, never a restart of the link, and the next
+item is handled as usual.  Everything sent (puts, replies) goes through the
+:mod:`.sender` thread, so no zenoh call is ever made on the event loop and a
+slow network cannot hold the control loop.  The session is opened and
+closed on a worker thread, and always closed (zenoh 1.x does not let a
+process with an open session exit).
 """
 
 from __future__ import annotations
@@ -35,13 +47,13 @@ import contextlib
 import itertools
 import json
 import logging
-import queue
+import math
 import threading
-from collections import Counter, deque
-from collections.abc import Callable
+from collections import Counter
 from typing import TYPE_CHECKING, Any
 
-from zarco_core.auv_messages import AuvTrack
+from drivers.nmea_device import RateLimitedLog
+from zarco_core.auv_messages import AuvTrack, BuoyStatus
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
@@ -56,7 +68,18 @@ from zarco_core.messages import (
     VesselStatus,
 )
 from zarco_runtime.guidance.directive import Directive
-from zarco_runtime.links.shore import telemetry
+from zarco_runtime.links.shore import requests, telemetry
+from zarco_runtime.links.shore.inbox import Corrections, Heartbeat, Inbox, Item, Query
+from zarco_runtime.links.shore.map_info import MAP_PERIOD_S, MapInfo
+from zarco_runtime.links.shore.requests import (
+    MAX_ATTACHMENT_BYTES,
+    MAX_COMMAND_BYTES,
+    MAX_HEARTBEAT_BYTES,
+    BadRequest,
+)
+from zarco_runtime.links.shore.ring_reader import RingReader
+from zarco_runtime.links.shore.rtcm_relay import READ_PERIOD_S, RING, RtcmRelay, TokenBucket
+from zarco_runtime.links.shore.sender import Sender
 from zarco_runtime.links.shore.zenoh_config import TELEMETRY, boat_config, prefix
 from zarco_runtime.supervision.local import LocalCommands
 
@@ -65,63 +88,16 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("zarco.shore")
 _ids = itertools.count(1)
-
-#: inbox bound (items between the zenoh threads and the loop); a query beyond is
-#: answered "busy" at once, a heartbeat or corrections chunk is dropped and counted
-INBOX_MAX = 1024
-#: sender queue bound (puts and replies); a put beyond is dropped and counted
-OUTBOX_MAX = 1024
-#: a command payload larger than this is refused unread (bytes)
-MAX_COMMAND_BYTES = 65536
-#: an ``rtcm`` sample larger than this is dropped and counted (bytes): a relay sends
-#: what it read, a few frames of at most 1029 bytes; the GPS driver checks every byte
-#: on the event loop, which must not be held by one huge sample
-MAX_RTCM_BYTES = 16384
+#: operator heartbeats zenoh keeps (the latest); at most this many are read
+#: every HEARTBEAT_PERIOD_S (s)
+HEARTBEAT_RING = 16
+HEARTBEAT_PERIOD_S = 0.05
+#: command sources with a rate bucket of their own; the others share one
+SOURCES_MAX = 64
 
 
-class _Inbox:
-    """From zenoh's threads to the event loop: append, and wake the loop once."""
-
-    def __init__(self, loop: asyncio.AbstractEventLoop,
-                 handle: Callable[[tuple[Any, ...]], None]) -> None:
-        self.loop = loop
-        self.handle = handle
-        self.items: deque[tuple[Any, ...]] = deque()
-        self.lock = threading.Lock()
-        self.scheduled = False
-        self.closed = False
-        self.dropped = 0
-
-    def post(self, item: tuple[Any, ...]) -> bool:
-        """Queue ``item`` (any thread); False if full or closed (not queued)."""
-        with self.lock:
-            if self.closed or len(self.items) >= INBOX_MAX:
-                self.dropped += 1
-                return False
-            self.items.append(item)
-            if self.scheduled:
-                return True
-            self.scheduled = True
-        try:
-            self.loop.call_soon_threadsafe(self._drain)
-        except RuntimeError:  # the loop is closed: we are shutting down
-            return False
-        return True
-
-    def _drain(self) -> None:
-        with self.lock:
-            items = list(self.items)
-            self.items.clear()
-            self.scheduled = False
-        for it in items:
-            self.handle(it)
-
-    def close(self) -> list[tuple[Any, ...]]:
-        with self.lock:
-            self.closed = True
-            items = list(self.items)
-            self.items.clear()
-        return items
+def _reply_body(ok: bool, cid: str | None, mode: str | None, reason: str) -> str:
+    return json.dumps({"ok": ok, "id": cid, "mode": mode, "reason": reason})
 
 
 class ShoreLink:
@@ -141,18 +117,52 @@ class ShoreLink:
         self.thrust = bus.latest(ThrusterCommand)
         self.directive = bus.latest(Directive)
         self.status = bus.latest(VesselStatus)
+        self.buoy = bus.latest(BuoyStatus)
+        self.map = MapInfo(cfg, self.frame)
+        #: the last ``map`` object sent (JSON; read by zenoh's threads to answer queries)
+        self._map_json = ""
+        self._map_key = ""
+        self._map_sent_t = -math.inf
         self.counters: Counter[str] = Counter()  # written on the event loop only
-        #: written by the sender thread only (keys fixed: safe to copy from the loop)
-        self.sent: dict[str, int] = {**{f"{k}_sent": 0 for k in TELEMETRY},
-                                     "replies_sent": 0, "send_errors": 0}
+        #: written on zenoh's threads, under its lock
+        self._thread_counters: Counter[str] = Counter()
+        self._thread_lock = threading.Lock()
+        self.sender = Sender(TELEMETRY)
+        self.relay = RtcmRelay(self.cfg.rtcm_budget_bps, self._post_corrections)
+        self.readers = [
+            RingReader("heartbeat", HEARTBEAT_PERIOD_S, HEARTBEAT_RING, self._on_operator,
+                       self._thread_fault),
+            RingReader("rtcm", READ_PERIOD_S, RING, self.relay.on_sample, self._thread_fault)]
+        self._buckets: dict[str, TokenBucket] = {}
+        self.rlog = RateLimitedLog(log)
         ctx.listen(VesselStatus, self._on_status)
         ctx.listen(Event, self._on_event)
         ctx.listen(AuvTrack, self._on_track)
-        self._out: queue.Queue[tuple[Any, ...] | None] = queue.Queue(OUTBOX_MAX)
-        self._inbox: _Inbox | None = None
+        self._inbox: Inbox | None = None
         self._tasks: set[asyncio.Task[None]] = set()
         self._session: Any = None
-        self._pubs: dict[str, Any] = {}
+
+    # ------------------------------------------------------------- counters
+
+    def _count(self, key: str, n: int = 1) -> None:
+        """Count from any thread."""
+        with self._thread_lock:
+            self._thread_counters[key] += n
+
+    def _thread_fault(self, exc: Exception) -> None:
+        self._count("faults")
+        log.debug("shore: %s: %s", type(exc).__name__, exc)
+
+    def link_counters(self) -> dict[str, int]:
+        """Every counter of the link (the ``health`` object's ``link``)."""
+        with self._thread_lock:
+            out = dict(self._thread_counters)
+        out.update(self.counters)
+        out.update(self.sender.counters())
+        out.update(self.relay.counters())
+        if self._inbox is not None:
+            out.update(self._inbox.dropped)
+        return out
 
     # ------------------------------------------------------------- outgoing
 
@@ -160,17 +170,26 @@ class ShoreLink:
         """Queue a telemetry object for the sender thread (never blocks)."""
         if self._session is None:
             return
-        try:
-            self._out.put_nowait(("put", key, json.dumps(obj, separators=(",", ":"))))
-        except queue.Full:
-            self.counters["telemetry_dropped"] += 1
+        self.sender.put(key, json.dumps(obj, separators=(",", ":")))
 
     def _utc(self, t: float) -> float:
         return self.clock.utc(t)
 
     def _on_status(self, st: VesselStatus) -> None:
-        self._put("health", telemetry.health(self._utc(st.t), st,
-                                             {**self.counters, **self.sent}))
+        self._put("health", telemetry.health(self._utc(st.t), st, self.link_counters()))
+        self._map_update(st.t)
+
+    def _map_update(self, now: float) -> None:
+        """Send the ``map`` object if it changed, or every :data:`MAP_PERIOD_S`."""
+        obj = self.map.build(0.0, self.status.value, self.directive.value, self.buoy.value)
+        key = json.dumps(obj, separators=(",", ":"))
+        if key == self._map_key and now - self._map_sent_t < MAP_PERIOD_S:
+            return
+        obj["t"] = round(self._utc(now), 3)
+        self._map_key = key
+        self._map_json = json.dumps(obj, separators=(",", ":"))
+        self._map_sent_t = now
+        self._put("map", obj)
 
     def _on_event(self, ev: Event) -> None:
         self._put("event", telemetry.event(self._utc(ev.t), ev))
@@ -184,143 +203,170 @@ class ShoreLink:
                                self.guidance.value, self.thrust.value, self.directive.value,
                                self.status.value)
 
-    def _sender(self, pubs: dict[str, Any]) -> None:
-        """The sender thread: every zenoh put and reply, in order."""
-        while True:
-            item = self._out.get()
-            if item is None:
-                return
-            try:
-                if item[0] == "put":
-                    pubs[item[1]].put(item[2])
-                    self.sent[f"{item[1]}_sent"] += 1
-                else:  # ("reply", query, key, payload)
-                    q = item[1]
-                    try:
-                        q.reply(item[2], item[3])
-                        self.sent["replies_sent"] += 1
-                    finally:
-                        q.drop()
-            except Exception as exc:  # a closed session, a dropped query
-                self.sent["send_errors"] += 1
-                log.debug("shore: send failed: %s", exc)
-
-    def _reply(self, query: Any, key: str, body: dict[str, Any]) -> None:
-        """Queue the one reply to ``query`` (never blocks: with the sender 1024 items
-        behind, the query is dropped unanswered and counted)."""
-        try:
-            self._out.put_nowait(("reply", query, key, json.dumps(body)))
-        except queue.Full:
-            self.counters["replies_dropped"] += 1
-            with contextlib.suppress(Exception):
-                query.drop()
-
-    # ------------------------------------------------------------- incoming
-
-    def _on_query(self, query: Any) -> None:  # a zenoh thread: no zenoh call here
-        try:
-            key = str(query.key_expr)
-            payload = query.payload.to_bytes() if query.payload is not None else b""
-            att = query.attachment.to_bytes() if query.attachment is not None else b""
-        except Exception as exc:  # let zenoh drop it (no reply)
-            log.debug("shore: unreadable query: %s", exc)
-            return
-        inbox = self._inbox
-        if inbox is None or not inbox.post(("cmd", query, key, payload, att)):
-            busy = json.dumps({"ok": False, "id": None, "mode": None,
-                               "reason": "busy: too many commands queued"})
-            with contextlib.suppress(queue.Full):  # else zenoh drops it (no reply)
-                self._out.put_nowait(("reply", query, key, busy))
-
-    def _on_sample(self, kind: str) -> Callable[[Any], None]:
-        def cb(sample: Any) -> None:  # a zenoh thread
-            inbox = self._inbox
-            if inbox is None:
-                return
-            if kind == "rtcm" and len(sample.payload) > MAX_RTCM_BYTES:
-                inbox.post(("rtcm_oversize", len(sample.payload)))
-                return
-            inbox.post((kind, sample.payload.to_bytes()))
-        return cb
-
-    def _handle(self, item: tuple[Any, ...]) -> None:
-        """One item from zenoh, on the event loop."""
-        kind = item[0]
-        if kind == "rtcm":
-            self.counters["rtcm_bytes"] += len(item[1])
-            self.bus.publish(RtcmCorrections(self.clock.now(), "shore", item[1]))
-        elif kind == "rtcm_oversize":
-            self.counters["rtcm_oversize_dropped"] += 1
-            log.warning("shore: an rtcm sample of %d bytes dropped (more than %d)", item[1],
-                        MAX_RTCM_BYTES)
-        elif kind == "operator":
-            self._heartbeat(item[1])
-        elif kind == "cmd":
-            self._command(*item[1:])
-
-    def _heartbeat(self, payload: bytes) -> None:
-        try:
-            d = json.loads(payload)
-            if not isinstance(d, dict):
-                raise ValueError("not an object")
-            user = str(d.get("user", ""))[:64]
-        except (ValueError, UnicodeDecodeError):
-            self.counters["bad_heartbeats"] += 1
-            return
-        self.counters["heartbeats"] += 1
-        self.bus.publish(OperatorHeartbeat(self.clock.now(), "shore", user))
-
     def _mode(self) -> str:
         d = self.directive.value
         return d.mode.value if d is not None else "idle"
 
-    def _command(self, query: Any, key: str, payload: bytes, att: bytes) -> None:
-        base = f"{self.key}/cmd/"
-        name = key[len(base):] if key.startswith(base) else ""
-        cid: str | None = None
-        user = ""
-        why = ""
-        args: dict[str, Any] = {}
+    def _reply(self, query: Any, key: str, ok: bool, cid: str | None, mode: str | None,
+               reason: str) -> None:
+        """Queue the one reply to ``query`` (never blocks)."""
+        self.sender.reply(query, key, _reply_body(ok, cid, mode, reason))
+
+    # ------------------------------------------------- zenoh's threads: read, bound, post
+
+    def _on_query(self, query: Any) -> None:
+        """A ``cmd/**`` query (zenoh's thread): posted, or refused here at once.
+
+        A refusal made here (over the source's rate, the inbox full, a query that
+        cannot be read) is answered on this thread, without the event loop or the
+        sender's queue: a flood is refused at the pace its own client's traffic
+        is read, and the other clients' replies do not queue behind it."""
+        key = ""
         try:
-            if att:
-                meta = json.loads(att)
-                if isinstance(meta, dict):
-                    user = str(meta.get("user", ""))[:64]
-                    cid = str(meta["id"])[:64] if meta.get("id") is not None else None
-            if not name or "/" in name or "*" in name or "$" in name:
-                raise ValueError(f"{key}: expected {base}<name>, one command")
-            if len(payload) > MAX_COMMAND_BYTES:
-                raise ValueError(f"payload larger than {MAX_COMMAND_BYTES} bytes")
-            raw = json.loads(payload) if payload.strip() else {}
-            if not isinstance(raw, dict):
-                raise ValueError("the payload must be a JSON object")
-            args = raw
-        except (ValueError, UnicodeDecodeError) as exc:
-            why = f"bad request: {exc}"
-        cid = cid or f"shore-{next(_ids)}"
-        self.counters["commands"] += 1
-        if why:
-            self.counters["commands_bad"] += 1
-            self._reply(query, key, {"ok": False, "id": cid, "mode": self._mode(),
-                                     "reason": why})
+            key = str(query.key_expr)
+            att = query.attachment
+            att_size = len(att) if att is not None else 0
+            att_b = att.to_bytes() if att is not None and att_size <= MAX_ATTACHMENT_BYTES \
+                else b""
+            source = requests.peek_user(att_b)
+            if not key.endswith("/cmd/stop") and not self._admit(source):
+                self._count("commands_rate_limited")
+                why = (f"busy: more than {self.cfg.commands_per_s:g} commands per second from "
+                       f"shore{':' + source if source else ''}; not acted on")
+            else:
+                body = query.payload
+                size = len(body) if body is not None else 0
+                item = Query(query, key,
+                             body.to_bytes() if body is not None and size <= MAX_COMMAND_BYTES
+                             else b"", size, att_b, att_size)
+                inbox = self._inbox
+                if inbox is not None and inbox.post(item):
+                    return
+                why = "busy: too many commands queued" if inbox is not None else \
+                    "shore link starting"
+        except Exception as exc:  # an unreadable query still gets its reply
+            self._count("faults")
+            why = f"unreadable query ({type(exc).__name__})"
+        self._count("commands_refused_at_once")
+        try:
+            query.reply(key, _reply_body(False, None, None, why))
+        except Exception as exc:  # the query already gone, the session closing
+            self._count("send_errors_at_once")
+            log.debug("shore: reply failed: %s", exc)
+        finally:
+            with contextlib.suppress(Exception):
+                query.drop()
+
+    def _on_info_query(self, query: Any) -> None:
+        """A query on ``map`` (the latest map object) or ``access`` (operators only,
+        by access control: the answer says the asker may command); zenoh's thread,
+        answered there (nothing to compute)."""
+        try:
+            key = str(query.key_expr)
+            body = json.dumps({"role": "operator"}) if key.endswith("/access") else \
+                self._map_json or json.dumps({"t": None})
+            query.reply(key, body)
+        except Exception as exc:  # the query already gone, the session closing
+            self._count("send_errors_at_once")
+            log.debug("shore: reply failed: %s", exc)
+        finally:
+            with contextlib.suppress(Exception):
+                query.drop()
+
+    def _admit(self, source: str) -> bool:
+        """Whether ``source`` may send one more command now (its token bucket:
+        ``commands_per_s``, a burst of twice that; ``stop`` is never limited)."""
+        with self._thread_lock:
+            b = self._buckets.get(source)
+            if b is None:
+                if len(self._buckets) >= SOURCES_MAX:
+                    source = "\0others"
+                    b = self._buckets.get(source)
+                if b is None:
+                    rate = self.cfg.commands_per_s
+                    b = self._buckets[source] = TokenBucket(rate, 2.0 * rate)
+        return b.take(1.0)
+
+    def _on_operator(self, sample: Any) -> None:
+        """An operator heartbeat (the heartbeat reader's thread): decoded, posted."""
+        try:
+            inbox = self._inbox
+            if inbox is None:
+                return
+            if len(sample.payload) > MAX_HEARTBEAT_BYTES:
+                self._count("bad_heartbeats")
+                return
+            user = requests.heartbeat(sample.payload.to_bytes())
+        except BadRequest:
+            self._count("bad_heartbeats")
             return
-        source = f"shore:{user}" if user else "shore"
-        task = asyncio.ensure_future(self._send_command(query, key, name, args, source, cid))
+        except Exception:  # counted; the next heartbeat is read as usual
+            self._count("faults")
+            return
+        inbox.post(Heartbeat(user))
+
+    def _post_corrections(self, frames: bytes) -> None:
+        """Whole valid frames from the relay thread, to the event loop."""
+        inbox = self._inbox
+        if inbox is not None:
+            inbox.post(Corrections(frames))
+
+    # ------------------------------------------------------- the event loop: act
+
+    def _handle(self, item: Item) -> None:
+        """One item from the inbox, on the event loop."""
+        if isinstance(item, Query):
+            self._command(item)
+        elif isinstance(item, Heartbeat):
+            self.counters["heartbeats"] += 1
+            self.bus.publish(OperatorHeartbeat(self.clock.now(), "shore", item.user))
+        else:
+            self.counters["rtcm_bytes"] += len(item.data)
+            self.bus.publish(RtcmCorrections(self.clock.now(), "shore", item.data))
+
+    def _fault(self, item: Item | None, exc: BaseException) -> None:
+        """An exception while handling ``item``: counted, a refusal for a command."""
+        self.counters["faults"] += 1
+        self.rlog.warning(f"fault:{type(exc).__name__}",
+                          f"shore: {type(exc).__name__} handling "
+                          f"{type(item).__name__ if item else 'a command'}: {exc}")
+        if isinstance(item, Query):
+            self.counters["commands_refused"] += 1
+            self._reply(item.query, item.key, False, None, self._mode(),
+                        f"refused: the link failed to handle it ({type(exc).__name__})")
+
+    def _command(self, q: Query) -> None:
+        self.counters["commands"] += 1
+        try:
+            r = requests.request(q.key, self.key, q.payload, q.attachment, q.size,
+                                 q.att_size)
+        except BadRequest as exc:
+            self.counters["commands_bad"] += 1
+            self._reply(q.query, q.key, False, f"shore-{next(_ids)}", self._mode(),
+                        f"bad request: {exc}")
+            return
+        cid = r.id or f"shore-{next(_ids)}"
+        source = f"shore:{r.user}" if r.user else "shore"
+        # the raw payload: the supervisor's command schema types it (a refusal
+        # naming the field is acknowledged on the bus, so it is recorded too)
+        task = asyncio.ensure_future(self._send_command(q, r.name, q.payload or b"{}", source,
+                                                        cid))
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
 
-    async def _send_command(self, query: Any, key: str, name: str, args: dict[str, Any],
+    async def _send_command(self, q: Query, name: str, args: bytes,
                             source: str, cid: str) -> None:
         try:
             ack = await self.commands.send(name, args, source=source, cmd_id=cid)
-        except BaseException:
-            # cancelled (shutting down): the query still gets its one reply
-            self._reply(query, key, {"ok": False, "id": cid, "mode": self._mode(),
-                                     "reason": "shore link stopping"})
+        except asyncio.CancelledError:
+            # shutting down: the query still gets its one reply
+            self._reply(q.query, q.key, False, cid, self._mode(), "shore link stopping")
             raise
+        except Exception as exc:
+            self._fault(q, exc)
+            return
         self.counters["commands_accepted" if ack.ok else "commands_refused"] += 1
-        self._reply(query, key, {"ok": ack.ok, "id": ack.id, "mode": ack.mode,
-                                 "reason": ack.reason})
+        self._reply(q.query, q.key, ack.ok, ack.id, ack.mode, ack.reason)
 
     # ------------------------------------------------------------------ run
 
@@ -333,35 +379,39 @@ class ShoreLink:
         try:
             pubs = {k: session.declare_publisher(f"{self.key}/{k}") for k in TELEMETRY}
             session.declare_queryable(f"{self.key}/cmd/**", self._on_query)
-            session.declare_subscriber(f"{self.key}/operator", self._on_sample("operator"))
-            session.declare_subscriber(f"{self.key}/rtcm", self._on_sample("rtcm"))
+            session.declare_queryable(f"{self.key}/map", self._on_info_query)
+            session.declare_queryable(f"{self.key}/access", self._on_info_query)
+            subs = [session.declare_subscriber(f"{self.key}/operator",
+                                               zenoh.handlers.RingChannel(HEARTBEAT_RING)),
+                    session.declare_subscriber(f"{self.key}/rtcm",
+                                               zenoh.handlers.RingChannel(RING))]
         except BaseException:
             session.close()
             raise
+        for reader, sub in zip(self.readers, subs, strict=True):
+            reader.start(sub)
         return session, pubs
 
-    def _close(self, session: Any, sender: threading.Thread | None) -> None:
-        """Stop the sender and close the session (a worker thread)."""
-        if sender is not None:
-            self._out.put(None)
-            sender.join(timeout=5.0)
+    def _close(self, session: Any) -> None:
+        """Stop the threads and close the session (a worker thread)."""
+        for reader in self.readers:
+            reader.stop()
+        self.sender.stop()
         if session is not None:
             session.close()
 
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
-        self._inbox = _Inbox(loop, self._handle)
+        self._inbox = Inbox(loop, self._handle, self._fault)
         session: Any = None
-        sender: threading.Thread | None = None
         opening = loop.run_in_executor(None, self._open)
         try:
-            session, self._pubs = await asyncio.shield(opening)
+            session, pubs = await asyncio.shield(opening)
             self._session = session
-            sender = threading.Thread(target=self._sender, args=(self._pubs,),
-                                      name="zarco-shore-send", daemon=True)
-            sender.start()
+            self.sender.start(pubs)
             log.info("shore link: vessel %s listening on %s (auth %s)", self.cfg.vessel,
                      ", ".join(self.cfg.listen), self.cfg.auth)
+            self._map_update(self.clock.now())
             period = 1.0 / self.cfg.state_hz
             k = 0
             t0 = self.clock.now()
@@ -371,11 +421,8 @@ class ShoreLink:
                 await self.clock.sleep_until(t0 + k * period)
         finally:
             self._session = None
-            for item in self._inbox.close():  # queries not yet handled get their reply
-                if item[0] == "cmd":
-                    self._reply(item[1], item[2], {"ok": False, "id": None,
-                                                   "mode": self._mode(),
-                                                   "reason": "shore link stopping"})
+            for q in self._inbox.close():  # queries not yet handled get their reply
+                self._reply(q.query, q.key, False, None, self._mode(), "shore link stopping")
             for task in list(self._tasks):
                 task.cancel()
             if self._tasks:  # their replies go out before the sender stops
@@ -384,7 +431,6 @@ class ShoreLink:
             if session is None:  # cancelled while opening: close what the worker opens
                 with contextlib.suppress(BaseException):
                     session, _ = await asyncio.shield(opening)
-            closing = loop.run_in_executor(None, self._close, session, sender)
+            closing = loop.run_in_executor(None, self._close, session)
             with contextlib.suppress(asyncio.CancelledError):
                 await asyncio.shield(closing)
-

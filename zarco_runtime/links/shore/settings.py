@@ -96,6 +96,13 @@ class Shore:
     ca_file: str = spec("", "", "mtls: the CA certificate that signs operators' and viewers' "
                         "certificates (PEM)")
     state_hz: float = spec(5.0, "Hz", "rate of the state telemetry", min=0.2, max=50.0)
+    rtcm_budget_bps: float = spec(65536.0, "B/s", "RTCM bytes relayed per second from "
+                                  "shore (a base station sends 1-5 kB/s); the excess is "
+                                  "counted and dropped", min=1024.0, max=1048576.0)
+    commands_per_s: float = spec(20.0, "1/s", "commands a second from one source (the "
+                                 "attachment's user), bursts of twice that; the excess is "
+                                 "answered busy at once (stop is never limited)", min=1.0,
+                                 max=1000.0)
 
     def validate(self) -> None:
         if not VESSEL_RE.match(self.vessel):

@@ -22,8 +22,12 @@ clockwise from true north in [0, 360); a value the boat does not know is
     ``components`` {name: {state, restarts}} and the ``link``'s own counters.
 ``auv`` (per track update)
     the AUV's estimated ``lat_deg``, ``lon_deg``, ``course_deg``,
-    ``speed_mps``, ``status`` (acquiring, tracking, turning, stale, lost) and
-    ``distance_m``, the horizontal distance from the vessel.
+    ``speed_mps``, ``status`` (acquiring, tracking, turning, stale, lost),
+    ``distance_m``, the horizontal distance from the vessel, ``pos_cov_m2``
+    [north², north·east, east²] (m²), the covariance of that position (the
+    fitted line's at the message's time: its 1σ ellipse on a map), and
+    ``sound_speed_mps``, ``sound_speed_sigma_mps``: the sound speed the
+    tracker computes the ranges with (its online estimate) and its 1σ.
 ``event`` (per event)
     ``kind`` (mode, failsafe, ack, fault, component, mission), ``text``,
     ``source``.
@@ -115,6 +119,18 @@ def auv_status(flags: int, lost: bool) -> str:
     return "tracking"
 
 
+def line_position_cov(cov: tuple[float, ...], dt: float) -> list[float | None] | None:
+    """[north², north·east, east²] (m²): the covariance of x0 + vx·dt, y0 + vy·dt
+    from the 4×4 covariance of (x0, y0, vx, vy) (row-major); None if it is not 4×4."""
+    if len(cov) != 16:
+        return None
+    c = cov
+    nn = c[0] + 2.0 * dt * c[2] + dt * dt * c[10]
+    ee = c[5] + 2.0 * dt * c[7] + dt * dt * c[15]
+    ne = c[1] + dt * (c[3] + c[9]) + dt * dt * c[11]
+    return [num(nn, 4), num(ne, 4), num(ee, 4)]
+
+
 def auv(utc: float, track: AuvTrack, frame: LocalFrame, nav: NavState | None
         ) -> dict[str, Any]:
     """The ``auv`` object: the track's line model evaluated at the message's time."""
@@ -132,7 +148,10 @@ def auv(utc: float, track: AuvTrack, frame: LocalFrame, nav: NavState | None
     return {"t": round(utc, 3), "lat_deg": num(lat, 8), "lon_deg": num(lon, 8),
             "course_deg": num(deg360(track.psi_auv_rad), 2),
             "speed_mps": num(track.v_auv_mps, 3),
-            "status": auv_status(track.flags, track.lost), "distance_m": num(dist, 2)}
+            "status": auv_status(track.flags, track.lost), "distance_m": num(dist, 2),
+            "pos_cov_m2": line_position_cov(track.cov, dt),
+            "sound_speed_mps": num(track.sound_speed_mps, 2),
+            "sound_speed_sigma_mps": num(track.sound_speed_sigma_mps, 2)}
 
 
 def event(utc: float, ev: Event) -> dict[str, Any]:

@@ -9,17 +9,30 @@ key                        direction       payload (UTF-8 JSON unless said other
 ``health``                 boat → shore    1 Hz device health
 ``auv``                    boat → shore    per AUV track update
 ``event``                  boat → shore    per event
+``map``                    boat → shore    on change and every 10 s; also a query
+``access``                 shore → boat    query: operators get ``{"role": "operator"}``
 ``cmd/<name>``             shore → boat    query (zenoh get), one reply each
 ``operator``               shore → boat    operator heartbeat (≥ 1 Hz)
 ``rtcm``                   shore → boat    raw RTCM3 bytes for the GPS receiver
 =========================  ==============  ==============================================
 
 Access control (``auth`` usrpwd or mtls) denies by default; operators may
-query ``cmd/**`` and put ``operator`` and ``rtcm``; viewers may only
-subscribe to the telemetry.  Rules are written per flow as seen from the
-boat: a viewer's subscription comes in (ingress ``declare_subscriber``),
-telemetry goes out (egress ``put``), an operator's query comes in and its
-reply goes out.
+query ``cmd/**`` and ``access`` and put ``operator`` and ``rtcm``; viewers
+may only subscribe to the telemetry; both may query ``map``.  Rules are
+written per flow as seen from the boat: a viewer's subscription comes in
+(ingress ``declare_subscriber``), telemetry goes out (egress ``put``), an
+operator's query comes in and its reply goes out.
+
+Operators are also told what the boat listens to: its subscriptions to
+``operator`` and ``rtcm`` (egress ``declare_subscriber``) and its queryable
+``cmd/**`` (egress ``declare_queryable``).  A zenoh client filters on the
+write side: a declared publisher (``session.declare_publisher``, zenoh's
+usual way to send a periodic value, the advanced publisher of
+``zenoh.ext``) or a querier (``session.declare_querier``) sends only once
+it knows that someone matches its key; without these declarations it sends
+its first sample (before the boat's answer arrives) and drops every later
+one.  ``session.put`` and ``session.get`` do not filter and need nothing.
+Viewers are told nothing of the kind: they may not send anyway.
 """
 
 from __future__ import annotations
@@ -28,7 +41,7 @@ from typing import Any
 
 from zarco_runtime.links.shore.settings import Shore
 
-TELEMETRY = ("state", "health", "auv", "event")
+TELEMETRY = ("state", "health", "auv", "event", "map")
 
 
 def prefix(vessel: str) -> str:
@@ -51,6 +64,23 @@ def access_control(cfg: Shore) -> dict[str, Any]:
          "permission": "allow", "key_exprs": [f"{v}/cmd/**"]},
         {"id": "operator_in", "messages": ["put"], "flows": ["ingress"],
          "permission": "allow", "key_exprs": [f"{v}/operator", f"{v}/rtcm"]},
+        # the boat's own declarations, announced to operators so that their
+        # declared publishers and queriers send (write-side filtering)
+        {"id": "listening_out", "messages": ["declare_subscriber"], "flows": ["egress"],
+         "permission": "allow", "key_exprs": [f"{v}/operator", f"{v}/rtcm"]},
+        {"id": "commands_out", "messages": ["declare_queryable"], "flows": ["egress"],
+         "permission": "allow", "key_exprs": [f"{v}/cmd/**", f"{v}/map", f"{v}/access"]},
+        # the map on demand (anyone), the role probe (operators)
+        {"id": "map_query", "messages": ["query"], "flows": ["ingress"],
+         "permission": "allow", "key_exprs": [f"{v}/map"]},
+        {"id": "map_reply", "messages": ["reply"], "flows": ["egress"],
+         "permission": "allow", "key_exprs": [f"{v}/map"]},
+        {"id": "map_out", "messages": ["declare_queryable"], "flows": ["egress"],
+         "permission": "allow", "key_exprs": [f"{v}/map"]},
+        {"id": "access_query", "messages": ["query"], "flows": ["ingress"],
+         "permission": "allow", "key_exprs": [f"{v}/access"]},
+        {"id": "access_reply", "messages": ["reply"], "flows": ["egress"],
+         "permission": "allow", "key_exprs": [f"{v}/access"]},
     ]
     field = "usernames" if cfg.auth == "usrpwd" else "cert_common_names"
     subjects: list[dict[str, Any]] = []
@@ -59,11 +89,13 @@ def access_control(cfg: Shore) -> dict[str, Any]:
         subjects.append({"id": "operators", field: list(cfg.operators)})
         policies.append({"id": "operators", "subjects": ["operators"],
                          "rules": ["telemetry_out", "subscribe", "commands_in", "replies_out",
-                                   "operator_in"]})
+                                   "operator_in", "listening_out", "commands_out", "map_query",
+                                   "map_reply", "access_query", "access_reply"]})
     if cfg.viewers:
         subjects.append({"id": "viewers", field: list(cfg.viewers)})
         policies.append({"id": "viewers", "subjects": ["viewers"],
-                         "rules": ["telemetry_out", "subscribe"]})
+                         "rules": ["telemetry_out", "subscribe", "map_query", "map_reply",
+                                   "map_out"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules,
             "subjects": subjects, "policies": policies}
 

@@ -1,0 +1,221 @@
+"""``zarco campaign``'s spec, draws and judgement: a mission is a pure function
+of (spec, seed, index); the follow campaign draws the field's errors and
+routes within the spec's ranges; a report is judged against its targets, with
+what physics forbids set apart."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from zarco_core.config import ConfigError, parse_override
+from zarco_tools.campaign.draw import draw_mission
+from zarco_tools.campaign.follow_judge import judge_follow
+from zarco_tools.campaign.spec import load_spec
+
+ROOT = Path(__file__).resolve().parents[1]
+FOLLOW = ROOT / "config" / "campaigns" / "follow.toml"
+
+
+def sets(overrides: list[str]) -> dict[str, Any]:
+    return {".".join(k): v for k, v in (parse_override(o) for o in overrides)}
+
+
+@pytest.fixture(scope="module")
+def spec() -> Any:
+    return load_spec(FOLLOW)
+
+
+@pytest.fixture(scope="module")
+def drawn(spec: Any) -> list[Any]:
+    return [draw_mission(spec, 11, k) for k in range(240)]
+
+
+def test_a_mission_depends_only_on_the_spec_seed_and_index(spec: Any) -> None:
+    a = draw_mission(spec, 3, 17)
+    for k in (5, 40, 2):  # other draws in between change nothing
+        draw_mission(spec, 3, k)
+    b = draw_mission(spec, 3, 17)
+    assert (a.overrides, a.scenario_seed, a.factors) == (b.overrides, b.scenario_seed,
+                                                         b.factors)
+    assert draw_mission(spec, 3, 18).overrides != a.overrides
+    assert draw_mission(spec, 4, 17).overrides != a.overrides
+
+
+def test_every_family_and_calibration_is_drawn(drawn: list[Any]) -> None:
+    assert {m.family for m in drawn} == {"lawnmower", "tight_lawnmower", "random_legs",
+                                         "arcs", "spiral"}
+    assert {m.factors["calibration"] for m in drawn} == {"exact", "sound_speed", "survey",
+                                                         "turnaround", "all"}
+    assert {m.factors["beacons"] for m in drawn} == {2, 3, 4}
+
+
+def test_the_field_errors_stay_within_the_issue_ranges(drawn: list[Any]) -> None:
+    speeds = []
+    for m in drawn:
+        s = sets(m.overrides)
+        cal = m.factors["calibration"]
+        c_true, c_cfg = s["lbl.sound_speed_mps"], s["runtime.tracker.network.sound_speed_mps"]
+        off = abs(c_true / c_cfg - 1.0)
+        assert off <= 0.01 + 1e-6
+        assert (off > 0.0) == (cal in ("sound_speed", "all") and off > 0.0)
+        if cal not in ("sound_speed", "all"):
+            assert c_true == c_cfg
+        survey = [math.dist(a[:2], b[:2]) for a, b in zip(
+            s["lbl.beacons"], s["runtime.tracker.network.beacons"], strict=True)]
+        assert max(survey) <= 2.0 + 0.01
+        if cal in ("survey", "all"):
+            assert min(survey) >= 1.0 - 0.01  # every beacon off
+        else:
+            assert max(survey) <= 0.01
+        tau = [abs(a - b) for a, b in zip(s["lbl.turnaround_s"],
+                                          s["runtime.tracker.network.turnaround_s"],
+                                          strict=True)]
+        assert max(tau) <= 0.002 + 1e-9
+        if cal not in ("turnaround", "all"):
+            assert max(tau) == 0.0
+        speeds.append(s["auv.speed_mps"])
+    assert 0.5 <= min(speeds) < 0.6 and 1.3 < max(speeds) <= 1.4
+
+
+def test_tight_lawnmowers_arcs_and_spirals_have_their_geometry(drawn: list[Any]) -> None:
+    for m in drawn:
+        s = sets(m.overrides)
+        wps = s["auv.waypoints"]
+        legs = [math.dist(a, b) for a, b in itertools.pairwise(wps)]
+        if m.family == "tight_lawnmower":
+            long, short = legs[0::2], legs[1::2]
+            assert all(40.0 - 0.2 <= x <= 80.0 + 0.2 for x in long)
+            assert all(10.0 - 0.2 <= x <= 20.0 + 0.2 for x in short)
+            assert all(abs(abs(a) - 90) <= 1 for a in m.factors["planned_turns_deg"])
+        elif m.family == "arcs":
+            arcs = s["auv.arcs"]
+            assert len(arcs) == len(wps) - 2
+            assert all(15.0 <= a[1] <= 60.0 and 90.0 <= abs(a[2]) <= 400.0 and a[3] == 0.0
+                       for a in arcs)
+        elif m.family == "spiral":
+            ((k, r, ang, g),) = s["auv.arcs"]
+            assert k == 1 and 15.0 <= r <= 30.0 and 540.0 <= abs(ang) <= 900.0
+            assert 10.0 <= g <= 25.0
+        else:
+            assert s["auv.arcs"] == []
+
+
+def test_two_beacon_routes_keep_to_one_side_of_the_baseline(drawn: list[Any]) -> None:
+    for m in drawn:
+        s = sets(m.overrides)
+        beacons = s["runtime.tracker.network.beacons"]
+        if len(beacons) != 2:
+            continue
+        (x0, y0, _), (x1, y1, _) = beacons
+        n = math.dist((x0, y0), (x1, y1))
+        side = [((x - x0) * (y1 - y0) - (y - y0) * (x1 - x0)) / n
+                for x, y in s["auv.waypoints"]]
+        assert min(side) > 0.0 or max(side) < 0.0
+
+
+def test_the_sim_command_names_the_scenario_and_every_override(spec: Any) -> None:
+    m = draw_mission(spec, 1, 0)
+    cmd = m.command(spec.scenario_file, ["runtime.follow.k_s=0.3"])
+    assert cmd.startswith("zarco sim config/scenarios/follow_turn.toml --seed ")
+    assert cmd.count("--set") == len(m.overrides) + 1 and cmd.endswith("runtime.follow.k_s=0.3")
+
+
+@pytest.mark.parametrize(("line", "bad", "key"), [
+    ("auv_speed_mps = [0.5, 1.4]", "auv_speed_mps = [1.5, 0.5]", "ranges.auv_speed_mps"),
+    ("auv_speed_mps = [0.5, 1.4]", "auv_speed = [0.5, 1.0]", "ranges.auv_speed"),
+    ("p_miss = [0.0, 0.20]", "p_miss = [0.0, 2.0]", "ranges.p_miss"),
+    ("distance_median_m = 1.0", "distance_median_m = -1", "targets.distance_median_m"),
+    ('route = "spiral"', 'route = "zigzag"', "families.spiral.route"),
+    ("turnaround = 1", 'turnaround = "x"', "choices.calibration.turnaround"),
+    ("plan_uturn_max_m = 6.0", "", "targets.plan_uturn_max_m"),
+])
+def test_a_bad_spec_is_refused_naming_the_key(tmp_path: Path, line: str, bad: str,
+                                              key: str) -> None:
+    text = FOLLOW.read_text()
+    assert line in text
+    text = text.replace(line, bad, 1).replace(
+        '"../scenarios/follow_turn.toml"',
+        '"' + str(ROOT / "config" / "scenarios" / "follow_turn.toml") + '"')
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    with pytest.raises(ConfigError) as e:
+        load_spec(p)
+    assert e.value.key == key
+
+
+# --------------------------------------------------------------------- judgement
+
+TARGETS = {"distance_median_m": 1.0, "distance_p95_m": 4.0, "survey_distance_median_m": 2.5,
+           "survey_distance_p95_m": 6.0, "turn_max_m": 12.0, "turn_recovery_s": 40.0,
+           "uturn_max_m": 15.0, "uturn_recovery_s": 45.0, "plan_uturn_max_m": 6.0,
+           "plan_uturn_recovery_s": 20.0, "arc_max_m": 12.0, "lost_max_s": 10.0,
+           "sound_speed_error_pct": 0.2}
+
+
+def report(**kw: Any) -> dict[str, Any]:
+    r = {"distance_median_m": 0.8, "distance_p95_m": 3.0, "lost_max_s": 2.0,
+         "sound_speed_error_max_pct": 0.1, "acquired_s": 8.0, "turns": []}
+    r.update(kw)
+    return r
+
+
+def uturn(peak: float, rec: float | None) -> dict[str, Any]:
+    return {"t_s": 100.0, "angle_deg": 180.0, "kind": "uturn", "distance_max_m": peak,
+            "recovery_s": rec}
+
+
+FACT = {"calibration": "exact", "plan": "none", "beacons": 3, "closing_mps": 0.4,
+        "sound_speed_error_pct": 0.0}
+
+
+def test_a_mission_within_every_target_passes() -> None:
+    j = judge_follow(TARGETS, FACT, report(turns=[uturn(14.0, 44.0)]))
+    assert j.fails == {} and j.exempt == {} and j.turns_ok == (True,)
+    assert j.severity == pytest.approx(44.0 / 45.0, abs=1e-3)  # the recovery, nearest its target
+
+
+def test_each_target_fails_on_its_own_figure() -> None:
+    j = judge_follow(TARGETS, FACT, report(distance_median_m=1.2, distance_p95_m=4.5,
+                                           lost_max_s=12.0, turns=[uturn(16.0, 30.0),
+                                                                   uturn(5.0, None)]))
+    assert set(j.fails) == {"median", "p95", "lost", "uturn"}
+    assert j.turns_ok == (False, False) and len(j.fails["uturn"]) == 2
+    assert j.severity == 3.0  # an unrecovered U-turn
+
+
+def test_the_plan_tightens_the_uturn_targets_and_a_survey_error_relaxes_the_distance() -> None:
+    planned = {**FACT, "plan": "plan"}
+    assert "uturn" in judge_follow(TARGETS, planned, report(turns=[uturn(7.0, 15.0)])).fails
+    assert "uturn" not in judge_follow(TARGETS, FACT, report(turns=[uturn(7.0, 15.0)])).fails
+    surveyed = {**FACT, "calibration": "survey"}
+    r = report(distance_median_m=2.0, distance_p95_m=5.5)
+    assert judge_follow(TARGETS, surveyed, r).fails == {}
+    assert set(judge_follow(TARGETS, FACT, r).fails) == {"median", "p95"}
+
+
+def test_what_physics_forbids_is_exempt_with_its_figure_not_a_miss() -> None:
+    slow = {**FACT, "closing_mps": -0.08}
+    j = judge_follow(TARGETS, slow, report(distance_p95_m=9.0, lost_max_s=12.0,
+                                           turns=[uturn(25.0, None)]))
+    assert set(j.exempt) == {"p95", "uturn"} and "-0.08 m/s" in j.exempt["p95"]
+    assert set(j.fails) == {"lost"}  # losing the track is not physics
+    assert j.severity == pytest.approx(1.2)
+
+
+def test_sound_speed_with_two_beacons_is_not_observable() -> None:
+    two = {**FACT, "beacons": 2, "sound_speed_error_pct": 0.8}
+    j = judge_follow(TARGETS, two, report(sound_speed_error_max_pct=0.8))
+    assert "sound_speed" in j.exempt and j.fails == {}
+    three = {**FACT, "sound_speed_error_pct": 0.8}
+    assert "sound_speed" in judge_follow(TARGETS, three,
+                                         report(sound_speed_error_max_pct=0.8)).fails
+
+
+def test_nan_in_a_report_fails_the_json_check() -> None:
+    j = judge_follow(TARGETS, FACT, report(track_error_rms_m=float("nan")))
+    assert "json" in j.fails

@@ -1,0 +1,112 @@
+"""The drive interlock: the conditions under which nothing may drive the boat.
+
+Three facts make driving unsafe whatever the mode (manual included): the
+position is lost, the heading is lost, or the thruster controller is silent.
+They are judged here, once, by pure functions of what was last heard; the
+supervisor's failsafe table uses the same functions for its ``position_lost``,
+``heading_lost`` and ``thruster_silent`` conditions, and the control task
+checks them itself at every tick through a :class:`DriveInterlock`, so a
+command computed between two supervisor evaluations is zero as soon as a
+condition holds, not up to one evaluation later.
+
+Times are runtime clock seconds; a reason "" means the condition does not hold.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+from zarco_core.messages import Heading, NavState, ThrusterCommand, ThrusterStatus
+
+
+def position_lost(now: float, nav: NavState | None, limit_s: float) -> tuple[str, float]:
+    """(reason, onset) when no GPS position was fused for ``limit_s`` (the
+    estimator dead-reckons until then) or the estimate calls its position
+    invalid; ("", nan) otherwise."""
+    if nav is None:
+        return "no position estimate", now
+    age = nav.gps_age_s + (now - nav.t)
+    if age > limit_s:
+        return f"no GPS position for {age:.1f} s", now - age
+    if not nav.pos_valid:
+        return "position estimate invalid", nav.t
+    return "", math.nan
+
+
+def heading_lost(now: float, last_heading_t: float | None, nav: NavState | None,
+                 limit_s: float) -> tuple[str, float]:
+    """(reason, onset) when no compass heading came for ``limit_s`` (or none
+    ever) or the estimate calls its heading invalid."""
+    if last_heading_t is None:
+        return "no compass heading yet", now
+    age = now - last_heading_t
+    if age > limit_s:
+        return f"no compass heading for {age:.1f} s", last_heading_t
+    if nav is not None and not nav.heading_valid:
+        return "heading estimate invalid", nav.t
+    return "", math.nan
+
+
+def thruster_silent(now: float, status_ref_t: float | None,
+                    limit_s: float) -> tuple[str, float]:
+    """(reason, onset) when the thruster controller has not answered for
+    ``limit_s``: ``status_ref_t`` is its last ``$PZTHS``, or the first command
+    sent to it if it never answered (None: nothing sent yet)."""
+    if status_ref_t is None:
+        return "", math.nan
+    age = now - status_ref_t
+    if age > limit_s:
+        return f"no status from the thruster controller for {age:.1f} s", status_ref_t
+    return "", math.nan
+
+
+class Limits(Protocol):
+    """The limits of the three conditions (s): the failsafe table's (``[failsafe]``)."""
+
+    position_lost_s: float
+    heading_lost_s: float
+    thruster_silent_s: float
+
+
+class DriveInterlock:
+    """What the control task knows of the three driving conditions.
+
+    Its listeners note the last compass heading and thruster status (and the
+    first command sent); :meth:`hazard` says why driving is unsafe now ("" when
+    it is not), with the limits of the live failsafe table (a parameter change
+    applies at once).  ``thrusters``: a thruster controller is configured (else
+    its silence is no condition).
+    """
+
+    def __init__(self, limits: Limits, thrusters: bool = True) -> None:
+        self.limits = limits
+        self.thrusters = thrusters
+        self.last_heading_t: float | None = None
+        self.last_status_t: float | None = None
+        self.first_cmd_t: float | None = None
+
+    def on_heading(self, m: Heading) -> None:
+        self.last_heading_t = m.t
+
+    def on_status(self, m: ThrusterStatus) -> None:
+        self.last_status_t = m.t
+
+    def on_command(self, m: ThrusterCommand) -> None:
+        if self.first_cmd_t is None:
+            self.first_cmd_t = m.t
+
+    @property
+    def status_ref_t(self) -> float | None:
+        """The thruster controller's last answer, else the first command sent."""
+        return self.last_status_t if self.last_status_t is not None else self.first_cmd_t
+
+    def hazard(self, now: float, nav: NavState | None) -> str:
+        """Why nothing may drive now ("" when driving is allowed)."""
+        lim = self.limits
+        why, _ = position_lost(now, nav, lim.position_lost_s)
+        if not why:
+            why, _ = heading_lost(now, self.last_heading_t, nav, lim.heading_lost_s)
+        if not why and self.thrusters:
+            why, _ = thruster_silent(now, self.status_ref_t, lim.thruster_silent_s)
+        return why

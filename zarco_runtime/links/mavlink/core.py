@@ -1,0 +1,161 @@
+"""What every part of the MAVLink endpoint shares: the settings, the bus and
+clock, the connections, the counters, the command path to the supervisor, the
+vessel as the supervisor's status says it (mode, armed, home: never a copy of
+its own), and the few helpers each part needs (is a message addressed to the boat, send a
+COMMAND_ACK or MISSION_ACK, say something as an event, run a coroutine as a
+task of the endpoint)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Coroutine
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from zarco_core.bus import Bus
+from zarco_core.clock import Clock
+from zarco_core.commands import CommandRefused, decode
+from zarco_core.component import ComponentContext
+from zarco_core.geodesy import LocalFrame
+from zarco_core.messages import CommandAck, Event, Mode, VesselStatus
+from zarco_runtime.links.mavlink.link import Link
+from zarco_runtime.links.mavlink.protocol import mav
+from zarco_runtime.links.mavlink.settings import read_signing_key
+from zarco_runtime.supervision.local import LocalCommands
+
+if TYPE_CHECKING:
+    from zarco_runtime.settings import RuntimeConfig
+
+log = logging.getLogger("zarco.mavlink")
+
+#: an identical STATUSTEXT (or refusal notice) is not repeated within this time (s)
+TEXT_REPEAT_S = 2.0
+
+
+@dataclass(slots=True)
+class Counters:
+    """What the endpoint did, since it started."""
+
+    commands: int = 0
+    commands_accepted: int = 0
+    commands_refused: int = 0
+    unsigned_refused: int = 0
+    ignored: int = 0
+    handler_errors: int = 0
+    statustext: int = 0
+    statustext_repeats: int = 0
+    params_set: int = 0
+    params_refused: int = 0
+    missions_uploaded: int = 0
+    missions_refused: int = 0
+    manual_forwarded: int = 0
+    gcs_heartbeats: int = 0
+    telemetry: dict[str, int] = field(default_factory=dict)
+
+
+class Core:
+    """The endpoint's shared state and helpers (see the module docstring)."""
+
+    def __init__(self, cfg: RuntimeConfig, bus: Bus, clock: Clock,
+                 ctx: ComponentContext) -> None:
+        self.cfg = cfg
+        self.s = cfg.mavlink
+        self.bus = bus
+        self.clock = clock
+        self.key = (read_signing_key(self.s.signing_key_file) if self.s.signing_key_file
+                    else None)
+        o = cfg.origin
+        self.frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+        self.cmds = LocalCommands(bus, clock, source="mavlink", listen=ctx.listen)
+        self.links: list[Link] = []
+        self.counters = Counters()
+        self._tasks: set[asyncio.Task[None]] = set()
+        self.failure: BaseException | None = None
+        #: the vessel as the supervisor last told it (mode, armed, home, mission)
+        self.status: VesselStatus | None = None
+
+    # --------------------------------------------------------------- vessel
+
+    @property
+    def mode(self) -> Mode:
+        """The supervisor's mode (idle before its first status)."""
+        st = self.status
+        if st is None:
+            return Mode.IDLE
+        try:
+            return Mode(st.mode)
+        except ValueError:
+            return Mode.IDLE
+
+    @property
+    def armed(self) -> bool:
+        """Armed, as the supervisor says."""
+        return self.status is not None and self.status.armed
+
+    @property
+    def home(self) -> tuple[float, float] | None:
+        """Home (lat, lon degrees) as the supervisor has it; None while unknown."""
+        st = self.status
+        if st is None or st.home_lat_deg is None or st.home_lon_deg is None:
+            return None
+        return st.home_lat_deg, st.home_lon_deg
+
+    # ------------------------------------------------------------- commands
+
+    async def supervise(self, name: str, args: dict[str, Any], src: int) -> CommandAck | None:
+        """Command ``name`` with ``args`` (what a ground station's message maps to)
+        to the supervisor as ``mavlink:<src>``: its acknowledgement, or None when
+        the arguments are not a valid command (the field and the reason said as
+        an event, so the ground station reads them as a STATUSTEXT)."""
+        source = f"mavlink:{src}"
+        try:
+            typed = decode(name, args)
+        except CommandRefused as exc:
+            self.event("ack", f"{name} from {source}: refused: {exc}")
+            return None
+        return await self.cmds.send(name, typed, source=source)
+
+    # ---------------------------------------------------------------- tasks
+
+    def spawn(self, coro: Coroutine[Any, Any, None]) -> None:
+        """Run ``coro`` as a task of the endpoint; if it raises, the endpoint fails
+        (and is restarted)."""
+        t = asyncio.get_running_loop().create_task(coro)
+        self._tasks.add(t)
+        t.add_done_callback(self._task_done)
+
+    def _task_done(self, t: asyncio.Task[None]) -> None:
+        self._tasks.discard(t)
+        if not t.cancelled() and t.exception() is not None:
+            self.failure = t.exception()
+
+    def cancel_tasks(self) -> None:
+        for t in list(self._tasks):
+            t.cancel()
+
+    # ------------------------------------------------------------- messages
+
+    def for_us(self, m: Any, sys_field: str = "target_system",
+               comp_field: str | None = "target_component") -> bool:
+        """Is ``m`` addressed to the boat (its system, or every system; its
+        component, or every component)?"""
+        ts = int(getattr(m, sys_field, 0))
+        if ts not in (0, self.s.system_id):
+            return False
+        if comp_field is None:
+            return True
+        tc = int(getattr(m, comp_field, 0))
+        return tc in (0, self.s.component_id)
+
+    def command_ack(self, link: Link, src: int, comp: int, cmd: int, result: int) -> None:
+        link.send(mav.MAVLink_command_ack_message(cmd, result, 0, 0, src, comp))
+
+    def mission_ack(self, link: Link, src: int, comp: int, result: int,
+                    mission_type: int = 0) -> None:
+        link.send(mav.MAVLink_mission_ack_message(src, comp, result, mission_type))
+
+    def event(self, kind: str, text: str) -> None:
+        """An event of this endpoint's own: logged, on the bus, and so to every GCS."""
+        log.info("%s: %s", kind, text)
+        self.bus.publish(Event(self.clock.now(), kind, text, "mavlink"))

@@ -1,0 +1,40 @@
+"""What physics allows a following boat: its top speed through the water and
+the speed it has left to close on the AUV.
+
+A mission whose closing speed is ≤ 0 somewhere on its route cannot be
+followed there whatever the software does: the campaign's tables say so with
+the figure instead of counting a miss.
+"""
+
+from __future__ import annotations
+
+import math
+
+
+def top_speed(x_u: float, x_uu: float, thrust_n: float) -> float:
+    """Steady speed through the water (m/s) where the damping −X_u u − X_|u|u u²
+    (``x_u`` N·s/m, ``x_uu`` N·s²/m², both negative) equals ``thrust_n`` (N,
+    both thrusters at full forward)."""
+    a, b = -x_uu, -x_u
+    if a <= 0.0:
+        return thrust_n / b if b > 0.0 else math.inf
+    return (-b + math.sqrt(b * b + 4.0 * a * thrust_n)) / (2.0 * a)
+
+
+def closing_speed(u_max: float, course_rad: float, current_mps: float,
+                  current_to_rad: float, v_auv: float) -> float:
+    """The boat's top ground speed along ``course_rad`` in a current
+    (``current_mps`` towards ``current_to_rad``), crabbing to cancel its cross
+    component, minus the AUV's speed (m/s)."""
+    along = current_mps * math.cos(current_to_rad - course_rad)
+    cross = current_mps * math.sin(current_to_rad - course_rad)
+    if abs(cross) >= u_max:
+        return -v_auv
+    return along + math.sqrt(u_max * u_max - cross * cross) - v_auv
+
+
+def least_closing_speed(u_max: float, courses_rad: list[float], current_mps: float,
+                        current_to_rad: float, v_auv: float) -> float:
+    """The least closing speed (m/s) over the route's courses."""
+    return min(closing_speed(u_max, c, current_mps, current_to_rad, v_auv)
+               for c in courses_rad)

@@ -1,0 +1,1 @@
+"""``zarco shore web``: the operator's live map in a browser (see :mod:`.server`)."""
