@@ -134,7 +134,7 @@ def _fmt_cell(c: dict[str, int]) -> str:
 def _table(title: str, groups: dict[str, dict[str, Any]], checks: list[str]) -> list[str]:
     cols = [*checks, "every target"]
     w0 = max(12, *(len(k) for k in groups)) + 1
-    widths = [max(len(c), 9) + 1 for c in cols]
+    widths = [max(len(c), 11) + 1 for c in cols]
     out = [title, f"{'':<{w0}}{'n':>4}  " + "".join(f"{c:>{w}}" for c, w in
                                                      zip(cols, widths, strict=True))]
     for name, g in groups.items():
