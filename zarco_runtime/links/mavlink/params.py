@@ -170,10 +170,11 @@ class ParamTable:
         return int(k)
 
     def describe(self, p: Param) -> str:
-        """One line of the parameter table (docs/protocols.md, MAVLink)."""
+        """One line of the parameter table (docs/protocols.md, MAVLink): id, key,
+        the value now (a default configuration's: the default), range, meaning."""
         info = self.info(p)
         if info.kind == "choice":
-            rng = " | ".join(f"{i} {c}" for i, c in enumerate(info.choices))
+            rng = ", ".join(f"{i} {c}" for i, c in enumerate(info.choices))
         elif info.kind == "bool":
             rng = "0 off, 1 on"
         else:
@@ -181,4 +182,7 @@ class ParamTable:
             hi = "" if info.hi is None else f"{info.hi:g}"
             rng = f"{lo} … {hi} {info.unit}".rstrip()
         lock = " (not under way)" if info.locked_under_way else ""
-        return f"| `{p.name}` | `{p.key}`{lock} | {rng} | {info.doc} |"
+        v = info.value
+        shown = (f"{self.wire(p):g} ({v})" if info.kind == "choice"
+                 else f"{int(v)}" if info.kind == "bool" else f"{v:g}")
+        return f"| `{p.name}` | `{p.key}`{lock} | {shown} | {rng} | {info.doc} |"
