@@ -298,3 +298,12 @@ def test_settings_take_strings_lists_and_refuse_the_rest(tmp_path: Path) -> None
     assert e.value.key == "mavlink.signing_key_file"
     with pytest.raises(ConfigError, match="cannot read"):
         mk(signing_key_file=str(tmp_path / "missing.key"))
+
+
+def test_the_documented_parameter_table_is_the_running_one() -> None:
+    """docs/protocols.md lists every MAVLink parameter as the code has it."""
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "protocols.md").read_text()
+    t = ParamTable(RuntimeConfig())
+    rows = [ln for ln in doc.splitlines() if ln.startswith("| `") and "` | `" in ln
+            and ln.split("`")[1] in t.by_name]
+    assert rows == [t.describe(p) for p in t.params]
