@@ -183,6 +183,5 @@ class ParamTable:
             rng = f"{lo} … {hi} {info.unit}".rstrip()
         lock = " (not under way)" if info.locked_under_way else ""
         v = info.value
-        shown = (f"{self.wire(p):g} ({v})" if info.kind == "choice"
-                 else f"{int(v)}" if info.kind == "bool" else f"{v:g}")
+        shown = f"{self.wire(p):g}" + (f" ({v})" if info.kind == "choice" else "")
         return f"| `{p.name}` | `{p.key}`{lock} | {shown} | {rng} | {info.doc} |"
