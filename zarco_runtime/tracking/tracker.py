@@ -203,7 +203,8 @@ class AuvTracker:
                 return out[-1]  # type: ignore[return-value]
             if self.last_track is None:
                 return None
-            if self.kf.initialised and not self._lost:
+            if (self.kf.initialised and not self._lost
+                    and (self.man.maneuvering or self.man.arcing)):
                 return self._predicted(t, self.last_track)
             return self._track(t, self.last_track)
         except Exception:
@@ -658,9 +659,11 @@ class AuvTracker:
                         *self._sound_speed())
 
     def _predicted(self, t: float, last: AuvTrack) -> AuvTrack:
-        """The track brought forward to runtime ``t``: the filter's state
-        predicted along its turn rate (a coordinated turn: the course keeps
-        turning between fixes) and the line's origin moved to ``t``."""
+        """The track brought forward to runtime ``t`` while the AUV turns: the
+        filter's state predicted along its turn rate (a coordinated turn: the
+        course keeps turning between fixes) and the line's origin moved to
+        ``t``.  (On a straight leg a tick only re-stamps the track: the guidance
+        carries the filter's position along the line's smoother velocity.)"""
         off = self.clock.rt_offset()
         t_utc = t - off
         kf = self.kf
