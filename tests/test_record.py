@@ -250,7 +250,8 @@ def test_disk_floor_stops_recording_with_a_fault_not_the_run(tmp_path: Path) -> 
     # zarco sim: a recording asked for and not written ends the run, and says why
     res = run_scenario(scn, record=str(tmp_path / "full.mcap"))
     assert res.report["stop"].startswith("recording failed at ")
-    assert res.report["sim_seconds"] < 5.0 and "below the floor" in res.extra["record_error"]
+    # ended at the recorder's first check of the disk, long before the 20 s limit
+    assert res.report["sim_seconds"] < 10.0 and "below the floor" in res.extra["record_error"]
     assert res.extra["record_paths"] == [] and not (tmp_path / "full.mcap").exists()
 
 

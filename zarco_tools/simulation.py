@@ -37,7 +37,7 @@ from zarco_core.messages import (
     ThrusterCommand,
 )
 from zarco_runtime.guidance.directive import Directive
-from zarco_runtime.guidance.mission import Leg, Mission, build_legs
+from zarco_runtime.guidance.mission import Leg, Mission, build_legs, plan_points
 from zarco_runtime.runtime import Runtime
 from zarco_runtime.supervision.local import LocalCommands
 from zarco_runtime.supervision.supervisor import Boot
@@ -86,7 +86,10 @@ class SimResult:
 def boot_mission(scn: Scenario, legs: list[Leg]) -> Boot:
     """The scenario's mission as the runtime's boot mission."""
     if scn.mission.kind == "follow":
-        mission: Mission | None = Mission("follow", name=scn.scenario.name)
+        o = scn.runtime.origin
+        mission: Mission | None = Mission(
+            "follow", name=scn.scenario.name,
+            auv_plan=plan_points(scn.mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)))
     elif scn.mission.kind == "lines" and legs:
         mission = Mission("lines", tuple(legs), scn.scenario.name)
     else:

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 from zarco_core.config import spec
 from zarco_core.lbl import LblNetworkParams
+from zarco_runtime.tracking.plan import PlanParams
 
 #: inputs the RLS line fit may take
 RLS_INPUTS = ("kf", "fix")
@@ -31,6 +32,7 @@ class TrackerParams:
     """Passive AUV tracker: cycle gates, fix, Kalman filter, RLS, track loss."""
 
     network: LblNetworkParams = spec(LblNetworkParams, "", "the LBL network")
+    plan: PlanParams = spec(PlanParams, "", "matching the AUV to its a-priori plan")
     auv_depth_m: float = spec(10.0, "m", "the AUV's (known, constant) depth, positive down",
                               min=0.0, max=6000.0)
     sequence: list[int] = spec([], "", "beacon ids in the AUV's interrogation order, "

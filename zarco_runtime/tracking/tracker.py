@@ -91,6 +91,7 @@ from zarco_runtime.tracking.imm import Imm, ModelSpec, turn_step
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.maneuver import ManeuverDetector
 from zarco_runtime.tracking.params import Network, TrackerParams
+from zarco_runtime.tracking.plan import PlanMatcher
 from zarco_runtime.tracking.rls import LineRls
 from zarco_runtime.tracking.timemap import ClockCheck, TimeMap
 
@@ -170,6 +171,8 @@ class AuvTracker:
         self._bad_geometry = False
         self._last_range_only = False
         self._buoy_fault = False
+        #: the AUV's a-priori plan: which leg it is on, its progress (:mod:`.plan`)
+        self.plan = PlanMatcher(params.plan)
 
     # ------------------------------------------------------------ public API
 
@@ -439,6 +442,7 @@ class AuvTracker:
                      False, ls[2], ls[3], ls[4])
         self.last_fix = fix
         out.append(fix)
+        self.plan.fix(fix)  # the AUV's progress along its plan, whatever the filter made of it
         self._last_range_only = False
         if ok:
             # only ranges the filter accepted take part in later fixes
@@ -610,6 +614,7 @@ class AuvTracker:
                 # an arc: the track says turning (the filter, whose turn rate
                 # follows it, leads), the line is left to its fit
                 man.turn_utc = t_em
+        self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma())
         track = self._build(t)
         self.last_track = track
         out.append(track)
@@ -649,9 +654,10 @@ class AuvTracker:
         h = (vy * x0 - vx * y0) / v if v > 0.0 else math.nan
         age = t - (self._last_update_utc + off)
         kx = kf.x
-        return AuvTrack(t, x0, y0, vx, vy, math.atan2(vy, vx), v, h, rls.covariance(),
-                        rls.t0 + off, rls.t0, age, self._flags(age), self._lost,
-                        kx[0], kx[1], kx[2], kx[3], kf.pos_sigma(), *self._sound_speed())
+        return self.plan.stamp(AuvTrack(
+            t, x0, y0, vx, vy, math.atan2(vy, vx), v, h, rls.covariance(), rls.t0 + off,
+            rls.t0, age, self._flags(age), self._lost, kx[0], kx[1], kx[2], kx[3],
+            kf.pos_sigma(), *self._sound_speed()))
 
     def _sound_speed(self) -> tuple[float, float, bool]:
         """(sound speed m/s, its 1σ m/s, converged) for the track."""
@@ -663,11 +669,11 @@ class AuvTracker:
     def _track(self, t: float, last: AuvTrack) -> AuvTrack:
         """``last`` re-stamped at ``t`` with its age and flags brought up to date."""
         age = t - (self._last_update_utc + self.clock.rt_offset())
-        return AuvTrack(t, last.x0_m, last.y0_m, last.vx_mps, last.vy_mps, last.psi_auv_rad,
-                        last.v_auv_mps, last.h_auv_m, last.cov, last.t0, last.t0_utc_s, age,
-                        self._flags(age), self._lost, last.kf_x_m, last.kf_y_m,
-                        last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m,
-                        *self._sound_speed())
+        return self.plan.stamp(AuvTrack(
+            t, last.x0_m, last.y0_m, last.vx_mps, last.vy_mps, last.psi_auv_rad,
+            last.v_auv_mps, last.h_auv_m, last.cov, last.t0, last.t0_utc_s, age,
+            self._flags(age), self._lost, last.kf_x_m, last.kf_y_m, last.kf_vx_mps,
+            last.kf_vy_mps, last.kf_pos_sigma_m, *self._sound_speed()))
 
     def _predicted(self, t: float, last: AuvTrack) -> AuvTrack:
         """The track brought forward to runtime ``t`` while the AUV turns: the
@@ -689,10 +695,10 @@ class AuvTracker:
         v = math.hypot(lvx, lvy)
         h = (lvy * lx - lvx * ly) / v if v > 0.0 else math.nan
         age = t - (self._last_update_utc + off)
-        return AuvTrack(t, lx, ly, lvx, lvy, math.atan2(lvy, lvx), v, h,
-                        rls.covariance_at(t_utc), t, t_utc, age, self._flags(age), self._lost,
-                        x, y, vx, vy, math.sqrt(max(0.5 * (pxx + pyy), 0.0)),
-                        *self._sound_speed())
+        return self.plan.stamp(AuvTrack(
+            t, lx, ly, lvx, lvy, math.atan2(lvy, lvx), v, h, rls.covariance_at(t_utc), t,
+            t_utc, age, self._flags(age), self._lost, x, y, vx, vy,
+            math.sqrt(max(0.5 * (pxx + pyy), 0.0)), *self._sound_speed()))
 
     def _check_lost(self, t: float | None, out: Out) -> None:
         """Declare the track lost when silent too long or too uncertain."""
@@ -707,6 +713,7 @@ class AuvTracker:
         if age <= p.lost_after_s and 0.5 * (pxx + pyy) <= p.lost_sigma_m ** 2:
             return
         self._lost = True
+        self.plan.leave()  # matched again once the track is back
         kx = self.kf.x
         self.acq.prior = (kx[0], kx[1])
         self.kf.reset()

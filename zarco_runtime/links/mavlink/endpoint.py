@@ -78,6 +78,7 @@ from zarco_core.messages import (
     GpsFix,
     GuidanceStatus,
     OperatorHeartbeat,
+    ParamChange,
     RtcmCorrections,
     VesselStatus,
 )
@@ -130,6 +131,7 @@ class MavlinkEndpoint:
         ctx.listen(GuidanceStatus, self.transfer.on_guidance)
         ctx.listen(VesselStatus, self._on_status)
         ctx.listen(AuvTrack, self.auv.on_track)
+        ctx.listen(ParamChange, self.params.on_change)
         t, cm, p = self.transfer, self.commands, self.params
         self._handlers: dict[str, Callable[[Link, Any], None]] = {
             "HEARTBEAT": self._on_heartbeat,
@@ -277,6 +279,7 @@ class MavlinkEndpoint:
 
     def _on_status(self, st: VesselStatus) -> None:
         self.core.status = st
+        self.transfer.on_status(st)
         self.telemetry.measure_load()
 
     def _on_directive(self, d: Directive) -> None:

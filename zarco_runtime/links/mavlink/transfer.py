@@ -6,7 +6,8 @@ item, re-requested after :data:`UPLOAD_RETRY_S`, given up after
 with ``start = false`` (:mod:`.mission`), and the MISSION_ACK carries its
 verdict.  One upload at a time; another ground station's is refused while one
 is in progress.  Download (MISSION_REQUEST_LIST, MISSION_REQUEST_INT): the
-mission as the boat has it.  Progress: MISSION_CURRENT at every change and
+supervisor's loaded mission (its status's waypoints; with the speed item of
+the upload that gave them, if one did).  Progress: MISSION_CURRENT at every change and
 MISSION_ITEM_REACHED as each waypoint is passed, from the supervisor's
 directives and the guidance's status."""
 
@@ -16,11 +17,17 @@ import logging
 from dataclasses import dataclass
 from typing import Any
 
-from zarco_core.messages import GuidanceStatus, Mode
+from zarco_core.messages import GuidanceStatus, Mode, VesselStatus
 from zarco_runtime.guidance.directive import Directive
 from zarco_runtime.links.mavlink.core import Core
 from zarco_runtime.links.mavlink.link import Link
-from zarco_runtime.links.mavlink.mission import MAX_ITEMS, Item, items_from_mission, parse_items
+from zarco_runtime.links.mavlink.mission import (
+    MAX_ITEMS,
+    Item,
+    items_from_mission,
+    items_from_points,
+    parse_items,
+)
 from zarco_runtime.links.mavlink.protocol import mav
 
 log = logging.getLogger("zarco.mavlink")
@@ -57,6 +64,11 @@ class MissionTransfer:
         self.mission_state = mav.MISSION_STATE_NO_MISSION
         self.cur = 0  # the waypoint (index into wps) the boat is heading for
         self.upload: Upload | None = None
+        #: the supervisor's mission these items are for (VesselStatus.mission_id)
+        self.mission_id = -1
+        #: the items of the last upload taken, and its waypoints: served while the
+        #: supervisor's loaded mission has these waypoints (they carry its speed)
+        self.uploaded: tuple[tuple[tuple[float, float], ...], list[Item], list[int]] | None = None
 
     # ---------------------------------------------------------------- upload
 
@@ -158,6 +170,7 @@ class MissionTransfer:
                 "name": f"{len(parsed.waypoints)} waypoints from {source}"}, up.sysid)
             if ack is not None and ack.ok:
                 c.counters.missions_uploaded += 1
+                self.uploaded = (tuple(parsed.waypoints), items, parsed.wp_seqs)
                 self.items = items
                 self.wp_seqs = parsed.wp_seqs
                 self.wps = tuple(parsed.waypoints)
@@ -256,6 +269,29 @@ class MissionTransfer:
     def broadcast_current(self, mode: Mode | None = None) -> None:
         for ln in self.core.links:
             ln.send(self.current(mode))
+
+    def on_status(self, st: VesselStatus) -> None:
+        """The supervisor's status: when its loaded mission changed (another
+        upload, the shore link's, a clear), the mission a ground station
+        downloads follows it."""
+        if st.mission_id == self.mission_id:
+            return
+        self.mission_id = st.mission_id
+        pts = tuple((float(a), float(b)) for a, b in st.mission_points)
+        if pts == self.wps:
+            return
+        up = self.uploaded
+        if up is not None and up[0] == pts:
+            self.items, self.wp_seqs = up[1], up[2]
+        else:
+            self.items, self.wp_seqs = items_from_points(pts)
+        self.wps = pts
+        self.cur = 0
+        running = st.mode == Mode.LINES.value and bool(pts)
+        self.mission_state = (mav.MISSION_STATE_NO_MISSION if not pts
+                              else mav.MISSION_STATE_ACTIVE if running
+                              else mav.MISSION_STATE_NOT_STARTED)
+        self.broadcast_current()
 
     def on_directive(self, d: Directive) -> None:
         """A new directive (not a repeat of the last) from the supervisor."""
