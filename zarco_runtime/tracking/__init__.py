@@ -14,13 +14,18 @@ Modules, in data-flow order:
 * :mod:`.cycles` – I/R/I cycle assembly with gates and drop counters;
 * :mod:`.fix` – ranges, emission time, motion-bias correction, circle and
   least-squares fixes;
+* :mod:`.calibration` – the sound speed and the turnarounds' range biases,
+  estimated online;
 * :mod:`.assembly` – a cycle's fix: motion-corrected circles, mirror choice,
   the joint fix with the other beacons, range-only updates;
+* :mod:`.gates` – the measured noise scale of the ranges, re-anchoring;
 * :mod:`.acquire` – mirror vote, (re)initialisation of the filter;
 * :mod:`.kalman` – constant-velocity Kalman filter with innovation gating;
-* :mod:`.imm` – interacting multiple models (straight, manoeuvring, turning);
-* :mod:`.maneuver` – manoeuvre detection (IMM state, cross-course CUSUM) and
-  the turn declaration;
+* :mod:`.imm` – interacting multiple models (a quiet coordinated turn for
+  lines and arcs, manoeuvring, turning at any rate, turning to port and to
+  starboard);
+* :mod:`.maneuver` – manoeuvre detection (IMM state, arcs, cross-course
+  CUSUM) and the turn declaration;
 * :mod:`.rls` – recursive least squares with forgetting on the line model;
 * :mod:`.plan`, :mod:`.plan_geometry`, :mod:`.plan_progress` – the AUV's
   a-priori plan: its legs and rounded corners, which leg the AUV is on, its

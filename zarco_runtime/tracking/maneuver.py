@@ -34,6 +34,8 @@ from zarco_runtime.tracking.params import TrackerParams
 
 #: the quiet model's turn rate is averaged over this long (s) to tell an arc
 ARC_TAU_S = 10.0
+#: below this speed (m/s) nothing is taken for an arc
+ARC_MIN_SPEED_MPS = 0.2
 #: 1σ (deg/s) of the quiet model's turn rate once a sharp turn is over
 QUIET_RATE_SIGMA_DPS = 0.5
 
@@ -75,7 +77,10 @@ class ManeuverDetector:
             a = min(1.0, (t - self.arc_t) / ARC_TAU_S)
             self.arc_rate += a * (w - self.arc_rate)
         self.arc_t = t
-        lim = math.radians(self.p.arc_rate_dps)
+        # the same turn-rate noise is a smaller sideways acceleration at low speed:
+        # below 1 m/s the rate that makes an arc grows as 1/speed
+        v = math.hypot(kf.x[2], kf.x[3])
+        lim = math.radians(self.p.arc_rate_dps) / min(1.0, max(v, ARC_MIN_SPEED_MPS))
         self.arcing = abs(self.arc_rate) >= (0.5 * lim if self.arcing else lim)
         return self.arcing
 
@@ -128,8 +133,9 @@ class ManeuverDetector:
         models' probability rose to ``maneuver_on``), ``during``, ``exit`` (it
         fell to ``maneuver_off``), or "" (straight, or a single-model filter).
         Updates :attr:`arcing` besides: the quiet model's turn rate, averaged
-        over ``ARC_TAU_S``, at least ``arc_rate_dps`` (and until it falls below
-        half that) — a steady turn the straight line would lag."""
+        over ``ARC_TAU_S``, at least ``arc_rate_dps`` (divided by the speed in
+        m/s below 1 m/s; and until it falls below half that) — a steady turn the
+        straight line would lag."""
         if not isinstance(kf, Imm):
             return ""
         mu = kf.maneuver_probability

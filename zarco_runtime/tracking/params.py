@@ -62,12 +62,13 @@ class TrackerParams:
     accel_psd: float = spec(0.004, "m²/s³", "constant-velocity model: white-acceleration "
                             "spectral density q (the quiet model of the IMM)",
                             min=1e-8, max=100.0)
-    arc_rate_psd: float = spec(1e-5, "rad²/s³", "IMM: turn-rate random walk of the quiet "
+    arc_rate_psd: float = spec(3e-6, "rad²/s³", "IMM: turn-rate random walk of the quiet "
                                "model (a straight line, or an arc it follows without lag)",
                                min=0.0, max=1.0)
     arc_rate_dps: float = spec(0.4, "deg/s", "IMM: an estimated turn rate at least this "
-                               "is a turn (an arc: the line follows the filter while it "
-                               "lasts)", min=0.0, max=90.0)
+                               "is a turn (an arc: the track says turning while it "
+                               "lasts); at speeds below 1 m/s, this divided by the speed",
+                               min=0.0, max=90.0)
     motion_model: str = spec("imm", "", "the AUV filter: 'imm' (models side by side: "
                              "straight, manoeuvring, coordinated turn) or 'cv' (one "
                              "constant-velocity model)", choices=list(MOTION_MODELS))

@@ -3,14 +3,17 @@
 :class:`AuvTracker` glues the chain, one event at a time::
 
     AcousticEvent ─▶ clock check (.timemap) ─▶ CycleAssembler (.cycles) ─▶
-    cycle_ranges (.fix) ─▶ fix assembly (.assembly: motion-bias correction,
-    circle fix, mirror choice, joint fix, range-only) ─▶ filter (an IMM of
-    straight, manoeuvring and turning models, or one CV filter; gated) ─▶
-    manoeuvre detection (.maneuver) ─▶ LineRls (forgetting, re-centred, turn
-    reset) ─▶ AuvTrack
+    cycle_ranges at the estimated sound speed, less the estimated range bias
+    (.fix, .calibration) ─▶ fix assembly (.assembly: motion-bias correction,
+    circle fix, mirror choice, joint fix, range-only) ─▶ filter (an IMM of a
+    quiet coordinated turn, manoeuvring and turning models, or one CV filter;
+    gated at the measured noise, .gates) ─▶ manoeuvre detection (.maneuver)
+    ─▶ LineRls (forgetting, re-centred, turn reset) ─▶ AuvTrack
+                         └─▶ calibration (.calibration): sound speed, biases
 
 and keeps what ties them together: acquisition and re-acquisition
-(:mod:`.acquire`), the track's flags, its aging and the lost declaration.
+(:mod:`.acquire`), re-anchoring, the track's flags, its aging and the lost
+declaration.
 
 * Cycles on beacon i ≠ listener give a two-circle fix; cycles on the listener's
   own beacon, and cycles whose reply was missed (two interrogations), give one
@@ -30,7 +33,10 @@ and keeps what ties them together: acquisition and re-acquisition
   filter runs, the prediction resolves it (smaller Mahalanobis distance),
   unless the other beacons' recent ranges tell the two apart.
 * Innovations beyond ``gate_chi2`` are refused (``innovation``), those beyond
-  ``soft_gate_chi2`` down-weighted.  When ``reacquire_after`` fixes were
+  ``soft_gate_chi2`` down-weighted, the range variances scaled by the noise
+  the joint fixes measure (:mod:`.gates`).  ``reanchor_after`` consistent
+  fixes refused in a row open the filter up until the fix passes
+  (``reanchored``).  When ``reacquire_after`` fixes were
   refused within ``init_window_s``, all recent fixes vote; if the vote
   disagrees with the filter and a straight track through the voted solutions
   explains at least two more fixes than the filter's track, the filter
@@ -40,7 +46,12 @@ and keeps what ties them together: acquisition and re-acquisition
 * Manoeuvres (:mod:`.maneuver`): the IMM's probability of not flying straight,
   a CUSUM on the fixes' cross-course innovation and a CUSUM on the RLS
   residuals declare turns; the line restarts from the filter while a turn
-  lasts (TURNING set meanwhile and ``turning_flag_s`` after).
+  lasts (TURNING set meanwhile and ``turning_flag_s`` after).  An arc (the
+  quiet model's averaged turn rate) sets TURNING without restarting the
+  line; while turning, :meth:`AuvTracker.tick` brings the filter's state
+  forward along its turn rate.
+* Every accepted range also feeds the sound-speed estimate
+  (:mod:`.calibration`); the network the ranges are computed with follows it.
 * Aging: no accepted update for ``stale_after_s`` sets STALE; for
   ``lost_after_s``, or a predicted position σ above ``lost_sigma_m``, the track
   is declared LOST (published once, then by :meth:`AuvTracker.tick`) and the
@@ -56,7 +67,7 @@ Counters (:meth:`AuvTracker.counters`): ``event.<reason>`` for dropped events
 ``fix.<reason>`` for cycles that gave no accepted update (``impossible_timing``,
 ``depth``, ``no_intersection``, ``innovation``, ``range_only_uninitialised``,
 ``init_pending``, ``inconsistent``: its ranges disagree with the other
-beacons') and for tracker events (``maneuver``, ``reacquired``,
+beacons') and for tracker events (``maneuver``, ``reacquired``, ``reanchored``,
 ``clock_resync``, ``reply_refused``), ``internal`` for any unexpected exception
 (never raised: the tests assert it stays absent).
 
@@ -206,7 +217,8 @@ class AuvTracker:
                 return out[-1]  # type: ignore[return-value]
             if self.last_track is None:
                 return None
-            if self.kf.initialised and not self._lost:
+            if (self.kf.initialised and not self._lost
+                    and (self.man.maneuvering or self.man.arcing)):
                 return self._predicted(t, self.last_track)
             return self._track(t, self.last_track)
         except Exception:
@@ -664,9 +676,11 @@ class AuvTracker:
             last.kf_vy_mps, last.kf_pos_sigma_m, *self._sound_speed()))
 
     def _predicted(self, t: float, last: AuvTrack) -> AuvTrack:
-        """The track brought forward to runtime ``t``: the filter's state
-        predicted along its turn rate (a coordinated turn: the course keeps
-        turning between fixes) and the line's origin moved to ``t``."""
+        """The track brought forward to runtime ``t`` while the AUV turns: the
+        filter's state predicted along its turn rate (a coordinated turn: the
+        course keeps turning between fixes) and the line's origin moved to
+        ``t``.  (On a straight leg a tick only re-stamps the track: the guidance
+        carries the filter's position along the line's smoother velocity.)"""
         off = self.clock.rt_offset()
         t_utc = t - off
         kf = self.kf
