@@ -84,6 +84,12 @@ MOVING_SIGMAS = 3.0
 #: a still AUV further than this many position σ (and 1 m) is closed in on
 #: before its track has settled
 APPROACH_SIGMAS = 4.0
+#: the plan's target is followed from this (or 1.2 turning radii, m) and the
+#: look-ahead before a corner to this long after it (s of the AUV's progress,
+#: at least the same distance), and as long after the plan's start; along its
+#: legs, the track's
+PLAN_CORNER_ZONE_M = 12.0
+PLAN_AFTER_CORNER_S = 20.0
 #: length of the virtual leg laid past the aim point (m)
 LEG_PAST_AIM_M = 100.0
 #: the paper law's leg starts this far behind the AUV and ends this far ahead (m)
@@ -308,7 +314,14 @@ class FollowGuidance:
     def _on_plan(self, track: AuvTrack, t: float) -> tuple[Target, PlanPath] | None:
         """The target carried along the plan, its position low-passed over
         ``target_tau_s`` along the path (path coordinate and offset); None
-        without a plan, with the AUV off it, or a track older than the plan."""
+        without a plan, with the AUV off it, or a track older than the plan.
+        Only about a corner — from ``PLAN_CORNER_ZONE_M`` (or 1.2 turning radii)
+        and the look-ahead before it to ``PLAN_AFTER_CORNER_S`` of the AUV's
+        progress after it — and after the plan's start: there the plan's
+        target turns with the AUV where the filter's lags, and is on the next
+        line while the filter settles on it; along a leg the track alone is as
+        good, and follows at once an AUV that turns off its plan mid-leg,
+        before the tracker has made sure it left."""
         plan, msg = self.plan, self._plan_msg
         if plan is None or msg is None or track.t < msg.t or track.plan_leg < 0:
             self._sm_plan = None
@@ -318,6 +331,14 @@ class FollowGuidance:
             self._sm_plan = None
             return None
         tg, path = got
+        zone = max(PLAN_CORNER_ZONE_M, 1.2 * path.radius)
+        leg = plan.leg_at(path.s)
+        since = path.s - leg.s0_m  # since the last corner, or the plan's start
+        to = leg.s0_m + leg.length_m - path.s if leg.index + 1 < len(plan.legs) else math.inf
+        if (to > zone + self.cfg.lookahead_m
+                and since > max(zone, math.hypot(tg.vx, tg.vy) * PLAN_AFTER_CORNER_S)):
+            self._sm_plan = None
+            return None
         v = math.hypot(tg.vx, tg.vy)
         r = path.radius
         sm = self._sm_plan

@@ -596,7 +596,8 @@ class AuvTracker:
                 rls.reset(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], 0.5 * (P[0][0] + P[1][1]),
                           0.5 * (P[2][2] + P[3][3]), 0.5 * (P[0][2] + P[1][3]),
                           max(kf.pos_sigma(), floor))
-        self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma())
+        self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma(),
+                         math.sqrt(max(0.5 * (kf.P[2][2] + kf.P[3][3]), 0.0)))
         track = self._build(t)
         self.last_track = track
         out.append(track)
