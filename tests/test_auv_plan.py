@@ -108,6 +108,47 @@ def test_nearest_looks_only_in_its_window() -> None:
     assert s == pytest.approx(170.0)
 
 
+def test_a_corner_is_rounded_by_the_arc_tangent_to_both_legs() -> None:
+    """A 90° corner with turning radius R: the arc leaves the first leg R before
+    the corner and joins the next R after it; half-way (the path coordinate of
+    the corner itself) it passes R(√2 − 1) inside the corner, heading 45° off."""
+    plan = Plan([(0.0, 0.0), (100.0, 0.0), (100.0, 50.0)])
+    for r in (2.0, 6.0, 11.0):
+        x, y, c = plan.point_at(100.0, 0.0, r)
+        assert math.hypot(100.0 - x, 0.0 - y) == pytest.approx(r * (math.sqrt(2.0) - 1.0))
+        assert (100.0 - x) == pytest.approx(y)  # on the corner's bisector, inside
+        assert c == pytest.approx(math.pi / 4)
+        assert plan.point_at(100.0 - r, 0.0, r)[:2] == pytest.approx((100.0 - r, 0.0))
+        assert plan.point_at(100.0 + r, 0.0, r)[:2] == pytest.approx((100.0, r))
+        # the arc is a quarter circle: πR/2 metres of path cover 2R of the plan
+        assert plan.advance(100.0 - r, math.pi * r / 2.0, r) == pytest.approx(100.0 + r)
+        assert plan.advance(100.0 + r, -math.pi * r / 2.0, r) == pytest.approx(100.0 - r)
+        assert plan.advance(10.0, 30.0, r) == pytest.approx(40.0)  # straight: metre for metre
+    # a leg shorter than twice the tangent length: a tighter arc, half the leg
+    short = Plan([(0.0, 0.0), (50.0, 0.0), (50.0, 8.0), (0.0, 8.0)])
+    assert short.point_at(54.0, 0.0, 10.0)[:2] == pytest.approx((50.0, 4.0))
+    # a reversal stays sharp (no arc is tangent to both legs)
+    rev = Plan([(0.0, 0.0), (50.0, 0.0), (0.0, 1.0)])
+    assert rev.point_at(50.0, 0.0, 10.0)[:2] == pytest.approx((50.0, 0.0))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_point_of_the_rounded_path_is_found_again_where_it_is(seed: int) -> None:
+    """nearest() undoes point_at() anywhere on a drawn lawnmower rounded with a
+    turning radius, straights and arcs alike, for offsets to either side well
+    within the radius (further out, about a corner, another leg can be nearer)."""
+    rng = np.random.default_rng(300 + seed)
+    pts, _, _ = lawnmower(rng)
+    plan = Plan([tuple(p) for p in pts])
+    for _ in range(200):
+        r = float(rng.choice([4.0, 8.0, 14.0]))
+        s = float(rng.uniform(0.0, plan.length_m))
+        c = float(rng.uniform(-0.45, 0.45)) * 4.0
+        x, y, _ = plan.point_at(s, c, r)
+        s2, c2 = plan.nearest(x, y, s - 8.0, s + 8.0, r)
+        assert (s2, c2) == pytest.approx((s, c), abs=1e-6)
+
+
 @pytest.mark.parametrize(("points", "why"), [
     ([(0.0, 0.0)], "auv_plan: a plan needs at least 2 points (or none)"),
     ([(0.0, 0.0), (0.5, 0.5)], "auv_plan[1]: less than 1 m from point 0"),

@@ -104,7 +104,14 @@ def test_keeps_above_a_still_auv_then_follows_when_it_moves_and_keeps_through_a_
     g = FollowGuidance(cfg)
     unsettled = _track(x=10.0, y=5.0, vx=0.04, vy=0.0, sv=0.03,
                        flags=int(TrackFlags.INITIALISED))
-    assert g.update(unsettled, 99.0, 0.0, 0.0).leg is None  # no settled track: stay
+    # no settled track: stay near it (within 4 σ) ...
+    near = AuvTrack(*[getattr(unsettled, f) for f in unsettled.__dataclass_fields__][:18],
+                    3.0)
+    assert g.update(near, 98.0, 0.0, 0.0).leg is None
+    # ... but close in from further (metres of uncertainty do not matter 11 m away)
+    far = g.update(unsettled, 99.0, 0.0, 0.0)
+    assert far.leg is not None and far.leg.course_rad == pytest.approx(math.atan2(5.0, 10.0),
+                                                                      abs=0.01)
     still = _track(x=10.0, y=5.0, vx=0.04, vy=0.0, sv=0.03)
     st = g.update(still, 100.0, 0.0, 0.0)
     assert not g.moving and st.reason == "above a still AUV"

@@ -80,7 +80,16 @@ COG_MIN_MPS = 0.25
 #: the virtual leg leads the boat's course over ground by at most this (rad)
 MAX_LEAD_RAD = math.radians(90.0)
 #: the AUV moves when its line's speed exceeds this many standard deviations
-MOVING_SIGMAS = 1.5
+MOVING_SIGMAS = 3.0
+#: a still AUV further than this many position σ (and 1 m) is closed in on
+#: before its track has settled
+APPROACH_SIGMAS = 4.0
+#: the plan's target is followed from this (or 1.2 turning radii, m) and the
+#: look-ahead before a corner to this long after it (s of the AUV's progress,
+#: at least the same distance), and as long after the plan's start; along its
+#: legs, the track's
+PLAN_CORNER_ZONE_M = 12.0
+PLAN_AFTER_CORNER_S = 20.0
 #: length of the virtual leg laid past the aim point (m)
 LEG_PAST_AIM_M = 100.0
 #: the paper law's leg starts this far behind the AUV and ends this far ahead (m)
@@ -194,9 +203,14 @@ class FollowGuidance:
             # else hold where we are
             # (the filter alone: a start restarts the line, which is not a reason
             # to stop going where the AUV is)
-            settled = (track.kf_pos_sigma_m <= cfg.hold_above_sigma_m
-                       and bool(track.flags & TrackFlags.INITIALISED)
-                       and (self._was_above or bool(track.flags & TrackFlags.LINE_VALID)))
+            # Far from it, a track still settling is good enough to close in on:
+            # metres of uncertainty do not matter tens of metres away
+            sigma = track.kf_pos_sigma_m
+            far = math.hypot(tg.x - x, tg.y - y) >= APPROACH_SIGMAS * max(sigma, 1.0)
+            settled = bool(track.flags & TrackFlags.INITIALISED) and (
+                (sigma <= cfg.hold_above_sigma_m
+                 and (self._was_above or bool(track.flags & TrackFlags.LINE_VALID)))
+                or (far and sigma <= cfg.max_pos_sigma_m))
             if not settled:
                 return self._hold(x, y, "AUV (nearly) still, track settling")
             return self._above(tg, t, x, y, path.course_at(0.0) if on_plan is not None
@@ -230,6 +244,12 @@ class FollowGuidance:
             theta = math.remainder(psi - math.atan2(ay - tg.y, ax - tg.x), math.tau)
             v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
             v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
+        dist = math.hypot(tg.x - x, tg.y - y)
+        if a <= 0.5 * dist:
+            # far off and not mostly ahead (a slow AUV's course, the sign of a,
+            # is mostly noise): close in on it whatever its course says
+            v_ref = max(v_ref, min(cfg.max_speed_mps, (dist - cfg.lookahead_m)
+                                   / cfg.catchup_tau_s))
         cp, sp = math.cos(psi), math.sin(psi)
         # from the ASV towards the aim point (along the rate-limited course), and on
         reach = math.hypot(ax - x, ay - y) + LEG_PAST_AIM_M
@@ -294,7 +314,14 @@ class FollowGuidance:
     def _on_plan(self, track: AuvTrack, t: float) -> tuple[Target, PlanPath] | None:
         """The target carried along the plan, its position low-passed over
         ``target_tau_s`` along the path (path coordinate and offset); None
-        without a plan, with the AUV off it, or a track older than the plan."""
+        without a plan, with the AUV off it, or a track older than the plan.
+        Only about a corner — from ``PLAN_CORNER_ZONE_M`` (or 1.2 turning radii)
+        and the look-ahead before it to ``PLAN_AFTER_CORNER_S`` of the AUV's
+        progress after it — and after the plan's start: there the plan's
+        target turns with the AUV where the filter's lags, and is on the next
+        line while the filter settles on it; along a leg the track alone is as
+        good, and follows at once an AUV that turns off its plan mid-leg,
+        before the tracker has made sure it left."""
         plan, msg = self.plan, self._plan_msg
         if plan is None or msg is None or track.t < msg.t or track.plan_leg < 0:
             self._sm_plan = None
@@ -304,6 +331,14 @@ class FollowGuidance:
             self._sm_plan = None
             return None
         tg, path = got
+        zone = max(PLAN_CORNER_ZONE_M, 1.2 * path.radius)
+        leg = plan.leg_at(path.s)
+        since = path.s - leg.s0_m  # since the last corner, or the plan's start
+        to = leg.s0_m + leg.length_m - path.s if leg.index + 1 < len(plan.legs) else math.inf
+        if (to > zone + self.cfg.lookahead_m
+                and since > max(zone, math.hypot(tg.vx, tg.vy) * PLAN_AFTER_CORNER_S)):
+            self._sm_plan = None
+            return None
         v = math.hypot(tg.vx, tg.vy)
         r = path.radius
         sm = self._sm_plan

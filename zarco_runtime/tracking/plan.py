@@ -115,6 +115,7 @@ class PlanMatcher:
     _bad_since: float = math.nan
     _bad_reason: str = ""
     _last_t: float = -math.inf
+    _vel_sigma: float = 0.0
     #: the AUV's progress along the plan while it is on it
     along: AlongPlan | None = None
 
@@ -162,19 +163,23 @@ class PlanMatcher:
         gate = p.cross_gate_m + 2.0 * sigma
         pos_ok = abs(cross) <= gate and -gate <= along <= leg.length_m + gate
         v = math.hypot(vx, vy)
+        # the course is judged beyond its own uncertainty (2σ of the velocity's
+        # direction): a filter just started or re-anchored does not know it
+        tol = math.radians(p.course_gate_deg) + math.atan2(self._vel_sigma, max(v, 1e-6))
         course_ok = v < p.min_speed_mps or abs(math.remainder(
-            math.atan2(vy, vx) - leg.course_rad, math.tau)) <= math.radians(p.course_gate_deg)
+            math.atan2(vy, vx) - leg.course_rad, math.tau)) <= tol
         return _Fit(along, cross, pos_ok, course_ok)
 
     def update(self, t: float, x: float, y: float, vx: float, vy: float,
-               sigma: float = 0.0) -> None:
+               sigma: float = 0.0, vel_sigma: float = 0.0) -> None:
         """Match the AUV's filtered state at time ``t`` (s): position (m),
-        velocity (m/s), position σ (m)."""
+        velocity (m/s), position σ (m), velocity σ (m/s)."""
         plan = self.plan
         if plan is None or not all(math.isfinite(v) for v in (t, x, y, vx, vy)):
             return
         if not math.isfinite(sigma):
             sigma = 0.0
+        self._vel_sigma = vel_sigma if math.isfinite(vel_sigma) and vel_sigma > 0.0 else 0.0
         self._last_t = t
         if self.leg < 0:
             self._search(t, x, y, vx, vy, sigma)
@@ -195,6 +200,14 @@ class PlanMatcher:
             return
         al.predict(fix.emission_utc_s, p.along_accel_psd)
         al.fix(fix, p.along_window_m, p.along_floor_m)
+        if al.off_path and not al.near_corner():
+            # fixes drifting off a straight leg, beyond what the AUV's offset from
+            # it explains: it has turned off (the fixes know before the filter's
+            # course does)
+            off = al.last_offset
+            self._leave(f"fixes {abs(off):.0f} m {'starboard' if off > 0 else 'port'} of "
+                        f"leg {self.leg + 1}")
+            return
         self._advance()
 
     def stamp(self, track: AuvTrack) -> AuvTrack:
@@ -337,7 +350,11 @@ class PlanMatcher:
             self._bad_since, self._bad_reason = t, reason
         if t - self._bad_since < p.leave_after_s:
             return
+        self._leave(reason)
+
+    def _leave(self, reason: str) -> None:
         self.leg = -1
+        self.along = None
         self.left += 1
         self._bad_since = math.nan
         self._reset_search()

@@ -197,6 +197,19 @@ class Plan:
                 hi = mid - 1
         return legs[lo]
 
+    def corner_distance(self, s: float) -> float:
+        """How far (m of the plan's path coordinate) ``s`` is from the nearest
+        corner; inf for a plan of one leg."""
+        if len(self.legs) < 2:
+            return math.inf
+        leg = self.leg_at(s)
+        d = math.inf
+        if leg.index > 0:
+            d = abs(s - leg.s0_m)
+        if leg.index + 1 < len(self.legs):
+            d = min(d, abs(leg.s0_m + leg.length_m - s))
+        return d
+
     # ------------------------------------------------------------ rounding
 
     def arcs(self, radius: float) -> tuple[Arc | None, ...]:

@@ -51,6 +51,11 @@ CROSS_ACCEL_CORNER = 0.03
 CROSS_DAMP_S = 8.0
 #: gate of a fix's offset from the path (χ², 1 degree of freedom)
 CROSS_GATE_CHI2 = 9.0
+#: the CUSUM of the fixes' offsets from the path: each normalised offset clipped
+#: to ± OFF_CAP, less OFF_DRIFT; the AUV has left the path at OFF_LEVEL
+OFF_CAP = 2.5
+OFF_DRIFT = 1.0
+OFF_LEVEL = 4.0
 #: a fix adds at most this (χ²) to a radius's score
 SCORE_CAP_CHI2 = 9.0
 #: "about a corner": within the widest rounding's tangent length plus this (m)
@@ -83,6 +88,16 @@ class AlongPlan:
     refused: int = 0
     scores: list[float] = field(default_factory=list)
     cross_rate: float = 0.0
+    #: the CUSUM of the fixes' offsets from the path (to starboard, to port), and
+    #: the last fix's offset (m)
+    off_pos: float = 0.0
+    off_neg: float = 0.0
+    last_offset: float = 0.0
+
+    @property
+    def off_path(self) -> bool:
+        """Whether the fixes have drifted off the path (the CUSUM's level)."""
+        return max(self.off_pos, self.off_neg) >= OFF_LEVEL
     #: covariance of (cross, cross_rate)
     Pc: list[list[float]] = field(default_factory=lambda: [[4.0, 0.0], [0.0, 0.01]])
 
@@ -158,6 +173,12 @@ class AlongPlan:
         # a fix far off the path where the AUV is (a wrong mirror, a late
         # detection) is an outlier, not a sudden offset
         e = c - self.cross
+        self.last_offset = c
+        # a two-sided CUSUM of the fixes' normalised offsets from the path (each
+        # clipped: one outlier is not a departure, fixes drifting to one side are)
+        z = max(-OFF_CAP, min(OFF_CAP, e / math.sqrt(self.Pc[0][0] + var_c)))
+        self.off_pos = max(0.0, self.off_pos + z - OFF_DRIFT)
+        self.off_neg = max(0.0, self.off_neg - z - OFF_DRIFT)
         if e * e <= CROSS_GATE_CHI2 * (self.Pc[0][0] + var_c):
             self._score(x, y, lo, hi, var_c)
             if self._update(s_m, var):
@@ -173,6 +194,7 @@ class AlongPlan:
             self.P = [[var, 0.0], [0.0, max(self.P[1][1], 0.2 ** 2)]]
             self.Pc = [[var_c, 0.0], [0.0, 0.01]]
             self.refused = 0
+            self.off_pos = self.off_neg = 0.0
         return False
 
     def _update(self, s: float, var: float) -> bool:

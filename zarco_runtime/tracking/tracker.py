@@ -614,7 +614,8 @@ class AuvTracker:
                 # an arc: the track says turning (the filter, whose turn rate
                 # follows it, leads), the line is left to its fit
                 man.turn_utc = t_em
-        self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma())
+        self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma(),
+                         math.sqrt(max(0.5 * (kf.P[2][2] + kf.P[3][3]), 0.0)))
         track = self._build(t)
         self.last_track = track
         out.append(track)

@@ -101,7 +101,18 @@ def cmd_param(args: argparse.Namespace) -> int:
 
 
 def cmd_follow(args: argparse.Namespace) -> int:
-    return _one(args, "follow", {})
+    a: dict[str, Any] = {}
+    if args.no_plan:
+        a["auv_plan"] = []
+    elif args.plan:
+        from zarco_tools.shore.mission_file import MissionFileError, load_mission
+
+        try:
+            a["auv_plan"] = load_mission(args.plan)["waypoints"]
+        except MissionFileError as exc:
+            print(f"zarco shore: follow: {exc}", file=sys.stderr)
+            return EXIT_CONFIG
+    return _one(args, "follow", a)
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
@@ -371,10 +382,17 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                            ("disarm", cmd_disarm, "disarm: idle, zero thrust"),
                            ("stop", cmd_stop, "stop: idle, zero thrust, disarmed (always "
                             "accepted)"),
-                           ("follow", cmd_follow, "follow the AUV"),
                            ("resume", cmd_resume, "resume the last mission")):
         x = ss.add_parser(name, parents=[common()], help=text)
         x.set_defaults(shore_func=fn)
+
+    fo = ss.add_parser("follow", parents=[common()], help="follow the AUV (with the configured "
+                       "AUV plan, or the one given)")
+    fp = fo.add_mutually_exclusive_group()
+    fp.add_argument("--plan", metavar="FILE", help="the AUV's a-priori mission: its waypoints "
+                    "as a mission file (.toml, .geojson)")
+    fp.add_argument("--no-plan", action="store_true", help="follow without any AUV plan")
+    fo.set_defaults(shore_func=cmd_follow)
 
     pa = ss.add_parser("param", parents=[common()],
                        help="set a parameter of the running configuration (refused while "
