@@ -3,7 +3,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup sim test lint bench
+.PHONY: setup sim test lint bench lock
 $(BIN)/zarco: pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
@@ -13,6 +13,7 @@ $(BIN)/zarco: pyproject.toml
 setup: $(BIN)/zarco
 
 sim: setup
+	mkdir -p out
 	$(BIN)/zarco sim config/scenarios/rectangle.toml --report out/rectangle.json --plot out/rectangle.png
 
 test: setup lint
@@ -25,3 +26,13 @@ lint: setup
 
 bench: setup
 	$(BIN)/python tests/bench/lines.py
+
+# systemd/requirements.lock: the runtime's dependencies (pyproject.toml) and what builds
+# it, at the versions this .venv's tests ran with, for any platform and Python >= 3.11,
+# each file's sha256 (systemd/install.sh installs with pip --require-hashes)
+lock: setup
+	$(BIN)/pip install -q uv
+	$(BIN)/pip freeze --exclude-editable > .venv/tested-versions.txt
+	$(BIN)/uv pip compile pyproject.toml systemd/build-requirements.in --universal \
+	    --python-version 3.11 --generate-hashes --constraint .venv/tested-versions.txt \
+	    --custom-compile-command "make lock" --quiet -o systemd/requirements.lock

@@ -37,6 +37,7 @@ import signal
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -48,6 +49,7 @@ from hil.follow import FINAL_S, LEG_SETTLE_S, follow_figures
 from hil.runtime_status import ErrorLog, RuntimeStatus
 from hil.simulator import HilSimulator
 from zarco_core.geodesy import LocalFrame
+from zarco_core.paths import writable_dir
 from zarco_runtime.guidance.mission import Leg, build_legs
 from zarco_tools.scenario import Scenario
 from zarco_tools.sim_report import TrackLog, line_figures
@@ -309,8 +311,68 @@ def failsafe_entries(rst: RuntimeStatus) -> list[str]:
     return sorted(out)
 
 
+class _Signals:
+    """SIGTERM, SIGINT and SIGHUP while the rig runs: the first ends the run as its
+    end would (the runtime is stopped, zero thrust checked, the report written);
+    a second one while stopping kills the runtime at once.  Either way the
+    runtime never outlives the rig."""
+
+    SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.loop = loop
+        self.first = asyncio.Event()
+        self.name = ""
+        self.proc: asyncio.subprocess.Process | None = None
+        for sig in self.SIGNALS:
+            loop.add_signal_handler(sig, self._on, sig)
+
+    def _on(self, sig: signal.Signals) -> None:
+        if not self.first.is_set():
+            self.name = sig.name
+            self.first.set()
+            print(f"\nzarco hil: {sig.name}: stopping the runtime (again to kill it)",
+                  file=sys.stderr, flush=True)
+        elif self.proc is not None and self.proc.returncode is None:
+            with contextlib.suppress(ProcessLookupError):
+                self.proc.kill()
+
+    def close(self) -> None:
+        for sig in self.SIGNALS:
+            self.loop.remove_signal_handler(sig)
+
+
+def _die_with_parent() -> Callable[[], None] | None:
+    """A function to run in the runtime's process before it starts (Linux): it
+    then gets SIGTERM when the rig's process ends, however it ends (even
+    SIGKILL), so that no runtime is left holding the pseudo-terminals.  The
+    C function is looked up here, in the rig: the child only calls it."""
+    import ctypes
+
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    pr_set_pdeathsig, term = 1, int(signal.SIGTERM)
+
+    def child() -> None:  # pragma: no cover - runs in the child, before exec
+        prctl(pr_set_pdeathsig, term)
+
+    return child
+
+
 async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir: Path,
                limit_s: float, quiet: bool) -> dict[str, Any]:
+    loop = asyncio.get_running_loop()
+    signals = _Signals(loop)
+    try:
+        return await _run_rig(scn, faults, legs, run_dir, limit_s, quiet, signals)
+    finally:
+        signals.close()
+
+
+async def _run_rig(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir: Path,
+                   limit_s: float, quiet: bool, signals: _Signals) -> dict[str, Any]:
     loop = asyncio.get_running_loop()
     sim = HilSimulator(scn, faults, legs, run_dir)
     status_file = run_dir / "status.jsonl"
@@ -328,7 +390,8 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
     w_spawn = time.monotonic()
     proc = await asyncio.create_subprocess_exec(
         *cmd, stdin=asyncio.subprocess.DEVNULL, stdout=logf, stderr=asyncio.subprocess.PIPE,
-        start_new_session=True)
+        start_new_session=True, preexec_fn=_die_with_parent())
+    signals.proc = proc
 
     async def pump() -> None:
         assert proc.stderr is not None
@@ -360,9 +423,13 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
     samples: list[tuple[float, float, float]] = []
     tasks: list[asyncio.Task[Any]] = []
     status = None if quiet else _Status(sim, rst, limit_s)
+    interrupted = loop.create_task(signals.first.wait(), name="hil.signals")
     try:
         attach = loop.create_task(ready())
-        await asyncio.wait({attach, exited}, return_when=asyncio.FIRST_COMPLETED)
+        await asyncio.wait({attach, exited, interrupted}, return_when=asyncio.FIRST_COMPLETED)
+        if signals.first.is_set() and not (attach.done() and attach.result()):
+            attach.cancel()
+            raise HilError(f"{signals.name} before the run started: runtime stopped")
         if not attach.done() or not attach.result():
             attach.cancel()
             await asyncio.sleep(0.1)  # its last words
@@ -389,7 +456,7 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
 
         tasks.append(loop.create_task(sampler(), name="hil.sampler"))
         done = loop.create_task(sim.complete.wait())
-        finished, _ = await asyncio.wait({done, exited}, timeout=limit_s,
+        finished, _ = await asyncio.wait({done, exited, interrupted}, timeout=limit_s,
                                          return_when=asyncio.FIRST_COMPLETED)
         done.cancel()
         t_end = loop.time()
@@ -398,6 +465,8 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
             samples.append((t_end - t_start, *end_stats))
         if exited in finished:
             stop = f"runtime exited (code {proc.returncode})"
+        elif interrupted in finished:
+            stop = f"signal {signals.name}"
         elif done in finished:
             stop = "mission complete"
         else:
@@ -420,6 +489,7 @@ async def _run(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_dir:
     finally:
         for t in tasks:
             t.cancel()
+        interrupted.cancel()
         watch.cancel()
         reading.cancel()
         if proc.returncode is None:  # interrupted: stop it as on the boat, then for good
@@ -508,6 +578,7 @@ def run_hil(scn: Scenario, faults: list[FaultSpec], run_dir: str | Path | None =
     """Run a scenario in HIL, in real time; returns the report (like ``zarco sim``'s)."""
     rd = Path(run_dir) if run_dir else Path(tempfile.mkdtemp(prefix="zarco-hil-"))
     rd.mkdir(parents=True, exist_ok=True)
+    rd = rd.resolve()  # the device links are serial paths: absolute
     # the receiver's clock says now (the runtime compares nothing with it but
     # epochs; this keeps a HIL capture plausible)
     scn.world.start_utc = datetime.now(UTC).isoformat(timespec="seconds")
@@ -618,35 +689,41 @@ def summary(report: dict[str, Any]) -> str:
 
 def main_hil(args: Any) -> int:
     from hil.scenario import load_hil_scenario
+    from zarco_tools.run_outputs import RunOutputs
 
     scn, faults = load_hil_scenario(args.scenario, args.set, args.seed)
     if args.no_faults:
         faults = []
+    out = RunOutputs.check(args.report, args.plot)  # before the run
+    run_dir = writable_dir(args.run_dir, "--run-dir", create=True) if args.run_dir else None
     try:
-        res = run_hil(scn, faults, args.run_dir, args.duration, quiet=args.quiet)
+        res = run_hil(scn, faults, run_dir, args.duration, quiet=args.quiet)
     except HilError as exc:
         print(f"zarco hil: {exc}", file=sys.stderr)
         return 1
-    if args.report:
-        Path(args.report).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.report).write_text(json.dumps(res.report, indent=2) + "\n")
-    if args.plot:
+    out.write_report(res.report)
+
+    def draw(path: Path) -> None:
         from zarco_tools.plot import plot_follow, plot_lines
 
-        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
         title = f"{scn.scenario.name} (HIL): seed {scn.scenario.seed}, "
         if "xtrack_rms_m" not in res.report:
             # the tracker's fixes and track are in the runtime's process: truth only
-            plot_follow(args.plot, res.log, {"auv_log": res.auv_log, "auv_msgs": []},
-                        title + f"distance max {res.report['distance_max_m']:.2f} m")
+            dmax = res.report.get("distance_max_m")
+            plot_follow(path, res.log, {"auv_log": res.auv_log, "auv_msgs": []},
+                        title + ("distance max -" if dmax is None
+                                 else f"distance max {dmax:.2f} m"))
         else:
-            plot_lines(args.plot, res.log, res.legs,
-                       title + f"RMS {res.report['xtrack_rms_m']:.3f} m")
+            rms = res.report.get("xtrack_rms_m")
+            plot_lines(path, res.log, res.legs,
+                       title + ("RMS -" if rms is None else f"RMS {rms:.3f} m"))
+
+    out.write_plot(draw)
     print(summary(res.report))
     print(f"\nrun directory: {res.run_dir}")
-    if args.report:
-        print(f"report: {args.report}")
-    if args.plot:
-        print(f"plot:   {args.plot}")
+    if out.written:
+        print("\n".join(out.written))
+    for line in out.failed:
+        print(f"zarco hil: {line}", file=sys.stderr)
     rt = res.report["hil"]["runtime"]
-    return 1 if rt["exited_before_the_end"] or rt["exit_code"] != 0 else 0
+    return 1 if rt["exited_before_the_end"] or rt["exit_code"] != 0 or out.failed else 0

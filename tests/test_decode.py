@@ -57,5 +57,5 @@ def test_cli_file_and_stdin(capsys: pytest.CaptureFixture[str],
 
 
 def test_cli_missing_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    assert main(["decode", str(tmp_path / "nope.log")]) == 1
+    assert main(["decode", str(tmp_path / "nope.log")]) == 2
     assert "nope.log" in capsys.readouterr().err

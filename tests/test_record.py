@@ -18,6 +18,7 @@ from typing import Any
 import pytest
 from mcap.reader import make_reader
 
+from zarco_core.auv_messages import AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock, run_virtual
 from zarco_core.messages import Event, Fault, NavState
@@ -26,7 +27,7 @@ from zarco_runtime.links.recorder.writer import Options, Recording
 from zarco_runtime.settings import RuntimeConfig
 from zarco_tools.log.export import export
 from zarco_tools.log.info import summarize
-from zarco_tools.log.plot import collect
+from zarco_tools.log.plot import collect, plot_recording
 from zarco_tools.log.reader import iter_messages, open_recording
 from zarco_tools.log.replay import replay, report
 from zarco_tools.scenario import load_scenario
@@ -190,6 +191,17 @@ def test_info_export_and_plot_read_the_recording(follow: Any, tmp_path: Path) ->
     assert f.kind == "follow" and f.truth
     assert f.log.x == res.log.x and f.log.t == res.log.t
     assert [a[1:] for a in f.extra["auv_log"]] == [a[1:] for a in res.extra["auv_log"]]
+    # the tracker's sound speed and its σ are in the recording as the bus had them,
+    # and the plot draws them
+    recorded = [(m.sound_speed_mps, m.sound_speed_sigma_mps, m.sound_speed_converged)
+                for m in f.extra["auv_msgs"] if isinstance(m, AuvTrack)]
+    on_bus = [(m.sound_speed_mps, m.sound_speed_sigma_mps, m.sound_speed_converged)
+              for m in res.extra["auv_msgs"] if isinstance(m, AuvTrack)]
+    assert recorded == on_bus and len(recorded) > 50
+    assert all(1400.0 < c < 1600.0 and 0.0 < sg < 10.5 for c, sg, _ in recorded)
+    png = tmp_path / "follow.png"
+    plot_recording(rec, png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
@@ -229,11 +241,18 @@ def test_replay_of_a_lines_mission_in_parts_is_exact(rectangle: list[Path]) -> N
 def test_disk_floor_stops_recording_with_a_fault_not_the_run(tmp_path: Path) -> None:
     scn = load_scenario(ROOT / "config" / "scenarios" / "rectangle.toml",
                         ["scenario.max_duration_s=20", "runtime.record.min_free_mb=1e7"])
-    res = run_scenario(scn, record=str(tmp_path / "full.mcap"))
+    # as on the boat: the recorder stops, the runtime goes on to its end
+    res = run_scenario(scn, record=str(tmp_path / "full.mcap"), end_on_record_failure=False)
     assert res.report["stop"].startswith("time limit")  # the run went on to its end
     events = [e for e in res.extra["events"] if e.source == "recorder"]
     assert any(e.kind == "fault" and "below the floor" in e.text for e in events), events
     assert not (tmp_path / "full.mcap").exists()
+    # zarco sim: a recording asked for and not written ends the run, and says why
+    res = run_scenario(scn, record=str(tmp_path / "full.mcap"))
+    assert res.report["stop"].startswith("recording failed at ")
+    # ended at the recorder's first check of the disk, long before the 20 s limit
+    assert res.report["sim_seconds"] < 10.0 and "below the floor" in res.extra["record_error"]
+    assert res.extra["record_paths"] == [] and not (tmp_path / "full.mcap").exists()
 
 
 def _batch(n: int, t0: float, ch: int = 1) -> bytes:
@@ -357,12 +376,23 @@ def test_a_killed_writer_leaves_a_file_every_reader_reads_to_its_cut(tmp_path: P
         proc.stdin.write(frame(b"J", json.dumps(start).encode()))
         proc.stdin.write(frame(b"J", json.dumps({"op": "channel", "id": 1, "topic": "/x",
                                                   "schema_name": "x", "schema": "{}"}).encode()))
-        end = time.monotonic() + 0.3 + 0.5 * rng.random()
         t = 0.0
-        while time.monotonic() < end:
+
+        def write_batch(stdin: Any) -> None:
+            nonlocal t
             recs = [{"t": (t := t + 0.001), "pad": os.urandom(48).hex()} for _ in range(500)]
-            proc.stdin.write(frame(b"D", w.BATCH.pack(500, 1e9) + pack(([1] * 500, recs))))
-            proc.stdin.flush()
+            stdin.write(frame(b"D", w.BATCH.pack(500, 1e9) + pack(([1] * 500, recs))))
+            stdin.flush()
+
+        # the random moment is counted from the first chunk on disk, however long a
+        # loaded machine takes to start the writer
+        deadline = time.monotonic() + 120.0
+        while not (path.exists() and path.stat().st_size > 4096):
+            assert time.monotonic() < deadline, "the writer never wrote a chunk"
+            write_batch(proc.stdin)
+        end = time.monotonic() + 0.3 * rng.random()
+        while time.monotonic() < end:
+            write_batch(proc.stdin)
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
         n = 0

@@ -9,6 +9,8 @@ import base64
 import os
 import re
 import socket
+import subprocess
+import sys
 import threading
 import time
 import tty
@@ -27,7 +29,22 @@ def _gps_counters(obs: Any) -> dict[str, int]:
     return dict(h.get("devices", {}).get("gps", {}).get("counters", {}))
 
 
-def _wait_frames(obs: Any, n: int, timeout_s: float = 10.0) -> dict[str, int]:
+def _has_open(pid: int, path: str) -> bool:
+    """Whether process ``pid`` has ``path`` open (its /proc fd links)."""
+    try:
+        fds = list(Path(f"/proc/{pid}/fd").iterdir())
+    except OSError:
+        return False
+    for fd in fds:
+        try:
+            if os.readlink(fd) == path:
+                return True
+        except OSError:
+            continue
+    return False
+
+
+def _wait_frames(obs: Any, n: int, timeout_s: float = 30.0) -> dict[str, int]:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         c = _gps_counters(obs)
@@ -117,17 +134,28 @@ def test_corrections_from_file_tcp_and_ntrip_reach_the_gps(tmp_path: Path) -> No
             tty.setraw(slave)
             tty.setraw(master)
 
-            def base_station() -> None:
-                time.sleep(1.5)  # the console opens the port first
+            port = os.ttyname(slave)
+            console = subprocess.Popen(
+                [sys.executable, "-m", "zarco_runtime.cli", "shore", "rtcm", port,
+                 "--baudrate", "57600", "--duration", "6"], stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE, text=True, env={**os.environ, **env})
+            try:
+                # the base station sends once the console has opened the port (a
+                # serial port's open drops what arrived before), however long a
+                # loaded machine takes to start it
+                deadline = time.monotonic() + 60.0
+                while not _has_open(console.pid, port) and console.poll() is None:
+                    assert time.monotonic() < deadline, "the console never opened the port"
+                    time.sleep(0.02)
                 for _ in range(12):
                     os.write(master, UBX_RESET + F1005 + b"$GPGGA,noise*00\r\n")
                     time.sleep(0.05)
-
-            threading.Thread(target=base_station, daemon=True).start()
-            try:
-                r = shore("rtcm", os.ttyname(slave), "--baudrate", "57600", "--duration", "3",
-                          env=env)
+                out, err = console.communicate(timeout=60)
+                r = subprocess.CompletedProcess(console.args, console.returncode, out, err)
             finally:
+                if console.poll() is None:
+                    console.kill()
+                    console.wait()
                 os.close(master)
                 os.close(slave)
             assert r.returncode == 0, r.stdout + r.stderr

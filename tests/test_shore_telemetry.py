@@ -50,6 +50,17 @@ def test_auv_course_is_clockwise_from_north_in_0_360() -> None:
     assert west["course_deg"] == 270.0 and west["distance_m"] is None
 
 
+def test_auv_carries_the_sound_speed_estimate_and_its_sigma() -> None:
+    tr = _track(int(TrackFlags.INITIALISED))
+    tr.sound_speed_mps, tr.sound_speed_sigma_mps = 1486.4213, 0.6149
+    a = telemetry.auv(0.0, tr, FRAME, None)
+    assert a["sound_speed_mps"] == 1486.42 and a["sound_speed_sigma_mps"] == 0.61
+    # a track built without them (NaN) says null, never NaN
+    b = json.loads(json.dumps(telemetry.auv(0.0, _track(int(TrackFlags.INITIALISED)), FRAME,
+                                            None), allow_nan=False))
+    assert b["sound_speed_mps"] is None and b["sound_speed_sigma_mps"] is None
+
+
 def test_auv_status_from_flags() -> None:
     f = TrackFlags
     cases = [(f.NONE, False, "acquiring"), (f.INITIALISED | f.TURNING, False, "turning"),

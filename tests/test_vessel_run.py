@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 import tty
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -167,6 +167,9 @@ def test_the_thruster_port_is_opened_exclusively(tmp_path: Path) -> None:
         return subprocess.run(["/bin/sh", "-c", f": <> {path}"], user=65534, cwd="/",
                               capture_output=True, text=True, timeout=10)
 
+    # a spare port made first: a pty made after the runtime's are closed could get
+    # the thruster port's number while the kernel is still releasing it
+    spare = Pty()
     with running(tmp_path) as (_p, ptys):
         path = ptys["thrusters"].path
         os.chmod(path, 0o666)  # as a port the operators' group may open
@@ -199,7 +202,6 @@ def test_the_thruster_port_is_opened_exclusively(tmp_path: Path) -> None:
         assert "busy" in out.stderr.lower(), out.stderr
     # a port with the same permissions that no runtime holds opens for that user:
     # the refusal above was the runtime's exclusive open, not the permissions
-    spare = Pty()
     os.chmod(spare.path, 0o666)
     assert probe(spare.path).returncode == 0
     spare.close()
@@ -232,13 +234,39 @@ def test_zarco_run_loads_no_simulator_hil_plotting_or_evaluation_code(tmp_path: 
 
 class ThrusterController:
     """A fake thruster controller on the master side: answers $PZTHS at 5 Hz and
-    records every $PZTHR it receives."""
+    records every $PZTHR it receives.  Used as a context manager it answers from
+    a thread of its own, all the time, as a real controller does (the runtime's
+    ``thruster_silent`` failsafe fires 0.6 s after the last answer, and a loaded
+    machine can take longer than that to run a ``zarco ctl``)."""
 
     def __init__(self, pty: Pty) -> None:
         self.pty = pty
         self.framer = NmeaFramer()
         self.commands: list[tuple[float, float]] = []
         self._next = 0.0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def __enter__(self) -> ThrusterController:
+        def serve() -> None:
+            while not self._stop.is_set():
+                self.poll()
+
+        self._thread = threading.Thread(target=serve, name="thruster-controller", daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+
+    def wait(self, cond: Callable[[], bool], timeout: float) -> bool:
+        """Wait (up to ``timeout`` s) until ``cond()`` holds."""
+        end = time.monotonic() + timeout
+        while not cond() and time.monotonic() < end:
+            time.sleep(0.02)
+        return cond()
 
     def poll(self, dt: float = 0.05) -> None:
         select.select([self.pty.master], [], [], dt)
@@ -288,22 +316,11 @@ class Sensors(threading.Thread):
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGQUIT])
 def test_every_stop_signal_leaves_zero_thrust_as_the_last_command(
         tmp_path: Path, sig: signal.Signals) -> None:
-    with running(tmp_path) as (p, ptys):
-        ctl = ThrusterController(ptys["thrusters"])
+    with running(tmp_path) as (p, ptys), ThrusterController(ptys["thrusters"]) as ctl:
         sensors = Sensors(ptys["gps"], ptys["compass"])
         sensors.start()
-        answering = threading.Event()
-
-        def serve() -> None:  # the thruster controller answers all along
-            while not answering.is_set():
-                ctl.poll()
-
-        server = threading.Thread(target=serve, daemon=True)
-        server.start()
         try:
-            end = time.monotonic() + 5.0
-            while time.monotonic() < end and not ctl.commands:
-                time.sleep(0.05)
+            assert ctl.wait(lambda: bool(ctl.commands), 30.0), "no $PZTHR from the runtime"
             ack = _ctl(tmp_path, "mode", {"mode": "manual"})  # through `zarco ctl`
             assert ack["reason"] == "disarmed", ack
             end = time.monotonic() + 20.0  # arm as an operator does, once the boat is ready
@@ -321,19 +338,16 @@ def test_every_stop_signal_leaves_zero_thrust_as_the_last_command(
                     f.write(json.dumps({"name": "thrust", "args": {"u1": 50.0, "u2": -30.0}})
                             + "\n")
                     f.flush()
-                    assert json.loads(f.readline())["ok"]
-                    time.sleep(0.1)
+                    reply = json.loads(f.readline())
+                    assert reply["ok"], reply
+                    ctl.wait(lambda: ctl.commands[-1:] == [(50.0, -30.0)], 0.1)
             assert ctl.commands[-1] == (50.0, -30.0)  # under way when the signal comes
             p.send_signal(sig)
-            end = time.monotonic() + 15.0
-            while p.poll() is None and time.monotonic() < end:
-                time.sleep(0.05)
-            time.sleep(0.2)
+            _out, err = p.communicate(timeout=30)
+            # the controller's thread reads the last bytes on the wire
+            ctl.wait(lambda: ctl.commands[-1] == (0.0, 0.0), 5.0)
         finally:
-            answering.set()
-            server.join(timeout=5)
             sensors.stop.set()
-        _out, err = p.communicate(timeout=5)
         assert p.returncode == 0, err[-2000:]
         assert ctl.commands[-1] == (0.0, 0.0)
         assert f"stopping: {sig.name}" in err

@@ -123,7 +123,18 @@ class AuvTrack:
     (m, m/s), ``kf_pos_sigma_m`` the RMS of its two position standard
     deviations.  ``fix_age_s``: runtime seconds since the emission time of the
     last accepted fix.  ``flags``: :class:`TrackFlags` bits; ``lost`` mirrors
-    the LOST bit.
+    the LOST bit.  ``sound_speed_mps``: the sound speed the ranges are
+    computed with — the tracker's online estimate (the configured one until
+    the geometry makes it observable, and when estimation is off);
+    ``sound_speed_sigma_mps`` its 1σ (the configured uncertainty while not
+    observable, 0 when estimation is off); ``sound_speed_converged``: that σ
+    is within the configured convergence bound.  ``plan_leg``: the leg of the
+    AUV's plan (:class:`AuvPlan`, 0 = from its first point to its second) the
+    AUV is on, −1 without a plan or off it; then ``plan_s_m``: its progress
+    along the plan at ``t0`` (m of path from the plan's first point),
+    ``plan_speed_mps`` its speed along the plan, ``plan_cross_m`` its offset
+    from the plan (m, + to starboard), ``plan_turn_radius_m`` the radius it
+    rounds the plan's corners with (m); NaN off the plan.
     """
 
     t: float
@@ -145,3 +156,30 @@ class AuvTrack:
     kf_vx_mps: float
     kf_vy_mps: float
     kf_pos_sigma_m: float
+    sound_speed_mps: float = math.nan
+    sound_speed_sigma_mps: float = math.nan
+    sound_speed_converged: bool = False
+    plan_leg: int = -1
+    plan_s_m: float = math.nan
+    plan_speed_mps: float = math.nan
+    plan_cross_m: float = math.nan
+    plan_turn_radius_m: float = math.nan
+
+
+@dataclass(slots=True)
+class AuvPlan:
+    """The AUV's a-priori mission (paper V: the lines it flies "according to an a
+    priori mission plan"): the waypoints it is expected to fly through, in
+    order, as local NED points (north, east; metres).  A prior for the tracker
+    (where the legs turn) and the follow guidance (the corners to cut); the
+    AUV may still leave it (an adaptive mission), which the tracker detects.
+
+    Published by the supervisor when following starts (from the ``follow``
+    command's ``auv_plan`` or ``[mission] auv_plan``) and cleared when it
+    ends: an empty ``points`` means no plan.  ``source`` says where it came
+    from (``mission``, or the command's source, e.g. ``shore:alice``).
+    """
+
+    t: float
+    points: tuple[tuple[float, float], ...] = ()
+    source: str = ""

@@ -23,6 +23,8 @@ import typing
 from pathlib import Path
 from typing import Any, TypeVar, get_args, get_origin, get_type_hints
 
+from zarco_core.paths import PathError, read_text
+
 T = TypeVar("T")
 
 
@@ -33,17 +35,20 @@ class ConfigError(ValueError):
         self.file = file
         self.key = key
         self.reason = reason
-        super().__init__(f"{file}: {key or '<top>'}: {reason}")
+        super().__init__(f"{file}: {key}: {reason}" if key else f"{file}: {reason}")
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file; syntax errors become a ConfigError with the position."""
-    p = Path(path)
+    """Read a TOML file.  A file that cannot be read (missing, a directory,
+    unreadable, not UTF-8) or has a syntax error is a ConfigError naming the
+    file and the reason (the position, for a syntax error)."""
     try:
-        with p.open("rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError(str(path), "", "file not found") from None
+        text = read_text(path)
+    except PathError as exc:
+        reason = "file not found" if exc.reason == "no such file or directory" else exc.reason
+        raise ConfigError(str(path), "", reason) from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(str(path), "", f"TOML syntax error: {exc}") from None
 

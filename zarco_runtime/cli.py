@@ -11,16 +11,21 @@ or evaluation code.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import sys
 from typing import Any
 
 from zarco_core.config import ConfigError
+from zarco_core.paths import PathError, oserror_reason, writable_file
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from zarco_runtime.vessel import run_vessel
 
+    if args.status:
+        writable_file(args.status, "--status")  # appended to: checked before the start
     return run_vessel(args.config, args.set, args.status)
 
 
@@ -59,9 +64,17 @@ def cmd_ctl(args: argparse.Namespace) -> int:
                     break
                 buf += chunk
     except OSError as exc:
-        print(f"zarco ctl: {args.socket}: {exc}", file=sys.stderr)
+        print(f"zarco ctl: {args.socket}: {oserror_reason(exc)} (is the runtime running, "
+              "with this supervisor.control_socket?)", file=sys.stderr)
         return 2
-    reply = json.loads(buf or b"{}")
+    try:
+        reply = json.loads(buf or b"{}")
+        if not isinstance(reply, dict):
+            raise ValueError("not an object")
+    except ValueError:
+        print(f"zarco ctl: {args.socket}: not a reply of a zarco runtime: {buf[:80]!r}",
+              file=sys.stderr)
+        return 2
     print(json.dumps(reply, indent=2 if listing else None))
     if not listing and not reply.get("ok"):
         print(f"zarco ctl: refused: {reply.get('reason')}", file=sys.stderr)
@@ -116,15 +129,44 @@ def _tool_commands(argv: list[str] | None) -> list[Any]:
     return sorted(entry_points(group="zarco.commands"), key=lambda e: e.name)
 
 
+def _quiet_stdout() -> None:
+    """The reader of standard output has gone (``zarco ctl status | head``): send
+    whatever is still buffered nowhere, so that exiting prints no error."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one ``zarco`` command; its exit status.  A configuration or a path
+    it cannot use is one line on stderr and exit 2; a reader that closes the
+    pipe early ends the command quietly (exit 0)."""
     args = build_parser(argv).parse_args(argv)
     from zarco_runtime.logs import setup, under_journal
 
     setup(args.verbose, service=args.command == "run" and under_journal())
+    # the command's full name: "zarco log info", "zarco shore status", ...
+    sub = getattr(args, f"{args.command}_command", None)
+    name = f"zarco {args.command}" + (f" {sub}" if isinstance(sub, str) else "")
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()  # here, where a closed pipe can still be told apart
+        return code
     except ConfigError as exc:
         print(f"zarco: configuration refused: {exc}", file=sys.stderr)
+        return 2
+    except PathError as exc:
+        print(f"{name}: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:
+        _quiet_stdout()
+        return 0
+    except OSError as exc:
+        if exc.filename is None:
+            raise
+        # a path no check caught (a read-only file system, a full disk, ...): still
+        # one line naming it
+        print(f"{name}: {exc.filename}: {oserror_reason(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

@@ -8,7 +8,7 @@ from pathlib import Path
 from drivers.transports import SYSTEM_SCHEMES, url_scheme
 from zarco_core.config import ConfigError, apply_overrides, build, load_toml
 from zarco_core.geodesy import LocalFrame
-from zarco_runtime.guidance.mission import Mission, MissionConfig, build_legs
+from zarco_runtime.guidance.mission import Mission, MissionConfig, build_legs, plan_points
 from zarco_runtime.settings import RuntimeConfig
 from zarco_runtime.supervision.supervisor import Boot
 
@@ -86,9 +86,11 @@ def boot_mission(cfg: RuntimeConfig, mc: MissionConfig | None, name: str = "miss
     if mc is None or mc.kind == "idle":
         return Boot()
     o = cfg.origin
+    frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
     if mc.kind == "follow":
-        return Boot(Mission("follow", name=name), bool(mc.autostart))
-    legs = build_legs(mc, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m))
+        return Boot(Mission("follow", name=name, auv_plan=plan_points(mc, frame)),
+                    bool(mc.autostart))
+    legs = build_legs(mc, frame)
     wps: tuple[tuple[float, float], ...] = ()
     if mc.frame == "geodetic":
         wps = tuple((float(w[0]), float(w[1])) for w in mc.waypoints)

@@ -22,7 +22,7 @@ from zarco_core.vessel import (
     VesselModel,
 )
 from zarco_runtime.control.settings import XTRACK_RATE_TAU_S, Control, xtrack_rate_tau_s
-from zarco_runtime.guidance.follow import FollowSettings
+from zarco_runtime.guidance.follow_settings import FollowSettings
 from zarco_runtime.guidance.settings import Guidance, HoldSettings
 from zarco_runtime.links.mavlink.settings import MavlinkSettings
 from zarco_runtime.links.recorder.settings import Record

@@ -10,7 +10,6 @@ run`` never loads this module.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -79,42 +78,44 @@ def _cell(v: float | None, digits: int) -> str:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
+    from zarco_tools.run_outputs import RunOutputs
     from zarco_tools.scenario import load_scenario
     from zarco_tools.simulation import StatusLine, run_scenario
 
     scn = load_scenario(args.scenario, args.set, args.seed)
+    out = RunOutputs.check(args.report, args.plot, args.record)  # before the run
     status = None if args.quiet else StatusLine()
     try:
         if args.realtime:
             print(f"zarco sim: {scn.scenario.name} running in real time (links as configured); "
                   "SIGTERM or Ctrl-C ends it", file=sys.stderr, flush=True)
-        res = run_scenario(scn, progress=status, realtime=args.realtime, record=args.record)
+        res = run_scenario(scn, progress=status, realtime=args.realtime,
+                           record=str(out.record) if out.record else None)
     finally:
         if status is not None:
             status.close()
-    if args.report:
-        Path(args.report).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.report).write_text(json.dumps(res.report, indent=2) + "\n")
-    if args.plot:
+    out.write_report(res.report)
+
+    def draw(path: Path) -> None:
         from zarco_tools.plot import plot_follow, plot_lines
 
-        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        title = f"{scn.scenario.name}: seed {scn.scenario.seed}, "
         if scn.mission.kind == "follow":
-            plot_follow(args.plot, res.log, res.extra,
-                        f"{scn.scenario.name}: seed {scn.scenario.seed}, distance median "
-                        f"{_fmt(res.report['distance_median_m'])}")
+            plot_follow(path, res.log, res.extra,
+                        title + f"distance median {_fmt(res.report['distance_median_m'])}")
         else:
-            plot_lines(args.plot, res.log, res.legs,
-                       f"{scn.scenario.name}: seed {scn.scenario.seed}, "
-                       f"RMS {res.report['xtrack_rms_m']:.3f} m")
+            plot_lines(path, res.log, res.legs,
+                       title + f"RMS {_fmt(res.report.get('xtrack_rms_m'))}")
+
+    out.write_plot(draw)
+    out.recorded(res.extra.get("record_paths", []), res.extra.get("record_error"))
     print(summary(res.report))
-    if args.report:
-        print(f"\nreport: {args.report}")
-    if args.plot:
-        print(f"plot:   {args.plot}")
-    if args.record:
-        print(f"record: {args.record}")
-    return 0
+    if out.written:
+        print()
+        print("\n".join(out.written))
+    for line in out.failed:
+        print(f"zarco sim: {line}", file=sys.stderr)
+    return 1 if out.failed else 0
 
 
 def _positive_hz(text: str) -> float:

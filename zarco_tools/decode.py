@@ -58,6 +58,7 @@ from zarco_core.messages import (
     RateOfTurn,
     ThrusterStatus,
 )
+from zarco_core.paths import readable_file
 
 
 def _r(x: float | None, nd: int) -> float | None:
@@ -219,9 +220,12 @@ def decode_stream(src: IO[bytes], out: IO[str], err: IO[str], name: str,
 
 def main_decode(path: str, variation_deg: float | None = None, summary: bool = False,
                 out: IO[str] | None = None, err: IO[str] | None = None) -> int:
-    """``zarco decode``: 0 on success, 1 if the input cannot be read."""
+    """``zarco decode``: 0 on success, 1 if reading the input fails; a path that
+    cannot be read at all raises PathError (exit 2)."""
     out = out or sys.stdout
     err = err or sys.stderr
+    if path != "-":
+        readable_file(path)
     try:
         if path == "-":
             decode_stream(sys.stdin.buffer, out, err, "-", variation_deg, summary)

@@ -39,8 +39,8 @@ RECOVER_HOLD_S = 10.0
 #: leg switches closer than this (s) to the previous one join its manoeuvre
 #: (a lawnmower's two 90° turns at the end of a leg are one U-turn)
 MERGE_S = 30.0
-#: a manoeuvre turning through more than this (deg) is a U-turn
-UTURN_DEG = 91.0
+#: a manoeuvre turning through more than this (deg, as reported: to 0.1°) is a U-turn
+UTURN_DEG = 90.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,7 +58,7 @@ class Manoeuvre:
         """``arc`` (a continuous turn), ``uturn`` (beyond 90°) or ``turn``."""
         if self.arc:
             return "arc"
-        return "uturn" if abs(math.degrees(self.angle_rad)) > UTURN_DEG else "turn"
+        return "uturn" if round(abs(math.degrees(self.angle_rad)), 1) > UTURN_DEG else "turn"
 
 
 def merge_manoeuvres(items: list[Manoeuvre], t_end: float) -> list[Manoeuvre]:

@@ -232,7 +232,7 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
     runtime = counters.get("runtime")
     configured = (float(runtime.cfg.tracker.network.sound_speed_mps) if runtime is not None
                   else float(acoustics.c))
-    return finite_or_none({
+    figures: dict[str, Any] = finite_or_none({
         "fix_interval_s": fix_interval,
         "fixes": len(fixes),
         "fix_error_rms_m": rms(ferr),
@@ -249,6 +249,7 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
         "hold_max_s": round(hold, 2),
         "lost_max_s": round(lost, 2),
     })
+    return figures
 
 
 def _fmt(v: Any, unit: str = "m", digits: int = 3) -> str:

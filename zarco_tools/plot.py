@@ -3,11 +3,29 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from zarco_core.paths import PathError, writable_file
 from zarco_runtime.guidance.mission import Leg
 from zarco_tools.sim_report import SETTLE_M, TrackLog, xtrack_series
+
+
+def image_path(path: str | Path, what: str = "--plot") -> Path:
+    """An image to write after a run, checked before it: a writable file
+    (:func:`zarco_core.paths.writable_file`) whose extension names a type
+    matplotlib writes (``.png``, ``.pdf``, ``.svg``, ...).  Raises PathError."""
+    p = writable_file(path, what)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    types = FigureCanvasAgg.get_supported_filetypes()
+    ext = p.suffix.lower().lstrip(".")
+    if ext not in types:
+        known = ", ".join(f".{t}" for t in sorted(types))
+        raise PathError(path, f"not an image type that can be written: "
+                        f"{('.' + ext) if ext else 'no extension'} (one of {known})", what)
+    return p
 
 
 def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str,
@@ -56,8 +74,9 @@ def plot_lines(path: str | Path, log: TrackLog, legs: list[Leg], title: str,
 
 def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str,
                 truth: bool = True) -> None:
-    """Tracks, the AUV's estimated velocity and course (paper Figs. 7, 8) and the
-    ASV–AUV distance (Fig. 9) (``truth``: the simulator's true tracks; else the
+    """Tracks, the AUV's estimated velocity and course (paper Figs. 7, 8), the
+    ASV–AUV distance (Fig. 9) and the tracker's sound-speed estimate with its
+    ±1σ (``truth``: the simulator's true tracks and sound speed; else the
     vessel's estimate and the AUV's filtered track, from a recording)."""
     import math
 
@@ -73,7 +92,10 @@ def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str,
     tracks = [m for m in msgs if isinstance(m, AuvTrack) and not m.lost
               and m.flags & TrackFlags.LINE_VALID]
     fixes = [m for m in msgs if isinstance(m, AuvFix) and m.accepted and not m.range_only]
-    fig, axs = plt.subplots(2, 2, figsize=(13, 9))
+    fig = plt.figure(figsize=(13, 12))
+    grid = fig.add_gridspec(3, 2, height_ratios=(1.0, 1.0, 0.6))
+    axs = [[fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1])],
+           [fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])]]
     ax = axs[0][0]
     what = "truth" if truth else "estimate"
     ax.plot([a[2] for a in auv], [a[1] for a in auv], "r-", lw=1.5, label=f"AUV ({what})")
@@ -115,7 +137,35 @@ def plot_follow(path: str | Path, log: TrackLog, extra: dict, title: str,
     ax.set_ylabel("distance (m)")
     ax.grid(True, alpha=0.3)
     ax.set_title("horizontal distance ASV–AUV (cf. paper Fig. 9)")
+    _sound_speed_panel(fig.add_subplot(grid[2, :]), msgs, extra, truth)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def _sound_speed_panel(ax: Any, msgs: list[Any], extra: dict, truth: bool) -> None:
+    """The tracker's sound speed over time with its ±1σ band (and the
+    simulator's true sound speed)."""
+    import math
+
+    from zarco_core.auv_messages import AuvTrack
+
+    pts = [(m.t, m.sound_speed_mps, m.sound_speed_sigma_mps) for m in msgs
+           if isinstance(m, AuvTrack) and math.isfinite(m.sound_speed_mps)]
+    if pts:
+        t = [p[0] for p in pts]
+        c = [p[1] for p in pts]
+        sg = [p[2] if math.isfinite(p[2]) else 0.0 for p in pts]
+        ax.fill_between(t, [a - b for a, b in zip(c, sg, strict=True)],
+                        [a + b for a, b in zip(c, sg, strict=True)], color="b", alpha=0.15,
+                        label="±1σ")
+        ax.plot(t, c, "b-", lw=1.0, label="estimated")
+    acoustics = extra.get("acoustics")
+    if truth and acoustics is not None:
+        ax.axhline(float(acoustics.c), color="k", lw=0.8, ls="--", label="true")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("m/s")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("sound speed the tracker computes the ranges with")

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import os
 import re
 import sys
 import time
@@ -30,6 +31,7 @@ from dataclasses import dataclass
 from typing import IO, Any
 
 from drivers.nmea import NmeaError, split_checked
+from zarco_core.paths import PathError, readable_file
 
 #: sentence type → index of its UTC time field
 TIME_FIELD = {"GGA": 0, "RMC": 0, "ZDA": 0, "GNS": 0, "GLL": 4}
@@ -199,8 +201,14 @@ def open_port(path: str, baudrate: int) -> Any:
 
 
 def main_replay(args: Any, err: IO[str] | None = None) -> int:
-    """``zarco replay``; 0 on success, 1 if the capture or the port cannot be opened."""
+    """``zarco replay``; 0 on success, 1 if the port cannot be opened or written;
+    a capture or a port path that does not exist raises PathError (exit 2)."""
     err = err or sys.stderr
+    if args.log != "-":
+        readable_file(args.log)
+    if not os.path.exists(args.port):
+        raise PathError(args.port, "no such file or directory (the serial port or "
+                        "pseudo-terminal to write to)", "--port")
     try:
         if args.log == "-":
             raw = sys.stdin.buffer.read()
@@ -239,6 +247,6 @@ def main_replay(args: Any, err: IO[str] | None = None) -> int:
     if prog is not None:
         prog(st.lines, sched.duration_s, force=True)
         prog.close()
-        err.write(f"replay: sent {st.lines} lines, {st.bytes} bytes in {st.wall_s:.1f} s "
+        err.write(f"replay: sent {st.lines} lines, {st.bytes} bytes in {st.wall_s:.2f} s "
                   f"(worst lateness {1000 * st.late_max_s:.1f} ms)\n")
     return 0

@@ -37,7 +37,7 @@ from zarco_core.messages import (
     ThrusterCommand,
 )
 from zarco_runtime.guidance.directive import Directive
-from zarco_runtime.guidance.mission import Leg, Mission, build_legs
+from zarco_runtime.guidance.mission import Leg, Mission, build_legs, plan_points
 from zarco_runtime.runtime import Runtime
 from zarco_runtime.supervision.local import LocalCommands
 from zarco_runtime.supervision.supervisor import Boot
@@ -86,7 +86,10 @@ class SimResult:
 def boot_mission(scn: Scenario, legs: list[Leg]) -> Boot:
     """The scenario's mission as the runtime's boot mission."""
     if scn.mission.kind == "follow":
-        mission: Mission | None = Mission("follow", name=scn.scenario.name)
+        o = scn.runtime.origin
+        mission: Mission | None = Mission(
+            "follow", name=scn.scenario.name,
+            auv_plan=plan_points(scn.mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)))
     elif scn.mission.kind == "lines" and legs:
         mission = Mission("lines", tuple(legs), scn.scenario.name)
     else:
@@ -120,6 +123,19 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     cmd = bus.latest(ThrusterCommand)
     faults: list[str] = []
     bus.tap(lambda m: faults.append(m.reason) if isinstance(m, Fault) else None)
+    realtime_stop = asyncio.Event()
+
+    def on_fault(f: Fault) -> None:
+        # a recording asked for and not written ends the run: nothing more of it
+        # would be kept (the recorder has stopped for good)
+        if f.source == "recorder" and "record_error" not in counters:
+            counters["record_error"] = f.reason
+            if counters.get("end_on_record_failure", True):
+                counters["stop"] = f"recording failed at {clock.now():.1f} s"
+                done.set()
+                realtime_stop.set()
+
+    bus.listen(Fault, on_fault)
     events: list[Event] = counters.setdefault("events", [])
     bus.listen(Event, events.append)
     acks: list[CommandAck] = counters.setdefault("acks", [])
@@ -185,7 +201,7 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
         realtime = counters.get("realtime", False)
         stop = done
         if realtime:  # the boat runs until a signal or the time limit
-            stop = asyncio.Event()
+            stop = realtime_stop
             loop = asyncio.get_running_loop()
             for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
                 loop.add_signal_handler(sig, lambda s=sig: (counters.__setitem__(
@@ -225,6 +241,8 @@ async def _simulate(scn: Scenario, legs: list[Leg], log: TrackLog,
     if runtime.cfg.devices.buoy.enabled and runtime.live.tracking is not None:
         counters["devices"]["buoy"] = dict(runtime.buoy.counters)
         counters["tracker"] = runtime.live.tracking.tracker.counters()
+    rec = next((c.instance for c in runtime.components if c.name == "recorder"), None)
+    counters["record_paths"] = list(getattr(rec, "paths", []))
 
 
 #: navigation errors are counted from this time (s): the first fixes and headings
@@ -321,19 +339,25 @@ ExtraTask = Callable[[Runtime], Coroutine[Any, Any, None]]
 
 def run_scenario(scn: Scenario, progress: ProgressFn | None = None,
                  realtime: bool = False, extra_tasks: list[ExtraTask] | None = None,
-                 record: str | None = None) -> SimResult:
+                 record: str | None = None, end_on_record_failure: bool = True) -> SimResult:
     """Simulate ``scn`` to the end of its mission (or its time limit); with
     ``realtime``, at 1× on a real clock until a signal or the time limit, with
     whichever links the runtime's configuration enables; with ``record``, into
     that MCAP file (as ``zarco run`` records).  ``extra_tasks`` run beside the
-    runtime (given it): a test's or benchmark's fake operator, say."""
+    runtime (given it): a test's or benchmark's fake operator, say.
+
+    A recording that fails (the recorder's Fault: a write error, the disk below
+    ``record.min_free_mb``) ends the run (``extra["record_error"]`` says why)
+    unless ``end_on_record_failure`` is false: then the run goes on without
+    it, as the boat does.  ``extra["record_paths"]``: the files recorded."""
     if record:
         scn.runtime.record.enabled = True
         scn.runtime.record.file = str(Path(record).resolve())
     o = scn.runtime.origin
     legs = build_legs(scn.mission, LocalFrame(o.lat_deg, o.lon_deg, o.alt_m))
     log = TrackLog()
-    counters: dict[str, Any] = {"extra_tasks": list(extra_tasks or [])}
+    counters: dict[str, Any] = {"extra_tasks": list(extra_tasks or []),
+                                "end_on_record_failure": end_on_record_failure}
     w0 = time.perf_counter()
     if realtime:
         import datetime as dt

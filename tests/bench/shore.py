@@ -32,6 +32,7 @@ Progress on stderr; one JSON line of figures on stdout.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import statistics
@@ -140,12 +141,14 @@ def link_run(auth: str, tmp: Path, seconds: float, n_cmds: int) -> dict[str, Any
                client_config(f"tcp/127.0.0.1:{port}")]
     out: dict[str, Any] = {"auth": auth}
     lat: list[float] = []
+    stamps: list[float] = []
     lock = threading.Lock()
 
     def on_sample(_v: str, kind: str, obj: dict[str, Any], _now: float) -> None:
         if kind == "state":
             with lock:
                 lat.append(time.time() - float(obj["t"]))
+                stamps.append(float(obj["t"]))
 
     with boats(Boat(sets, log=tmp / f"boat-{auth}.log")):
         c = _connect(op, "alice", hz=2.0)
@@ -155,6 +158,7 @@ def link_run(auth: str, tmp: Path, seconds: float, n_cmds: int) -> dict[str, Any
             c.start_heartbeat(["zarco"])
             with lock:
                 lat.clear()
+                stamps.clear()
             rtt: list[float] = []
             t_end = time.monotonic() + seconds
             period = seconds / max(1, n_cmds)
@@ -166,6 +170,8 @@ def link_run(auth: str, tmp: Path, seconds: float, n_cmds: int) -> dict[str, Any
                 time.sleep(period)
             with lock:
                 out["latency_samples"] = list(lat)
+                out["state_intervals"] = [b - a for a, b in itertools.pairwise(stamps)
+                                          if b > a]
             out["rtt"] = rtt
             # security: a viewer's commands, unauthenticated sessions
             if auth != "none":
@@ -328,6 +334,10 @@ def link_figures(args: argparse.Namespace, tmp: Path, out: dict[str, Any]) -> No
     out["telemetry_latency_ms_by_auth"] = {
         r["auth"]: {"p50": ms(pct(r["latency_samples"], 50)),
                     "p99": ms(pct(r["latency_samples"], 99))} for r in runs}
+    gaps = [x for r in runs for x in r["state_intervals"]]
+    # the boat's state publications (its own stamps), nominally 200 ms apart (5 Hz)
+    out["state_interval_ms"] = {"p50": ms(pct(gaps, 50)), "p99": ms(pct(gaps, 99)),
+                                "max": ms(max(gaps)), "samples": len(gaps)}
     out["command_rtt_ms"] = {"p50": ms(pct(rtt_all, 50)), "p99": ms(pct(rtt_all, 99)),
                              "max": ms(max(rtt_all)), "samples": len(rtt_all)}
     out["command_rtt_ms_by_auth"] = {

@@ -31,7 +31,7 @@ import math
 from typing import TYPE_CHECKING
 
 from zarco_core.angles import wrap
-from zarco_core.auv_messages import AuvTrack
+from zarco_core.auv_messages import AuvPlan, AuvTrack
 from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock, VirtualTimeEventLoop
 from zarco_core.messages import (
@@ -98,6 +98,7 @@ class ControlTask:
         self.stbd = ThrusterMap.from_table(th.starboard.u, th.starboard.f_n)
         self.nav = bus.latest(NavState)
         self.track = bus.latest(AuvTrack)
+        self.auv_plan = bus.latest(AuvPlan)
         self.directive = bus.latest(Directive)
         self.manual = bus.latest(ManualThrust)
         self.period_jitter_hist = [0] * (JITTER_BINS + 1)
@@ -265,20 +266,23 @@ class ControlTask:
         f = self.follow
         assert f is not None
         fcfg = self.cfg.follow
+        f.set_plan(self.auv_plan.value)
         fs = f.update(self.track.value, t, nav.x_m, nav.y_m)
         self.bus.publish(GuidanceStatus(t, f"follow:{fs.mode}", fs.leg.index if fs.leg else -1,
                                         0, fs.along_error_m, fs.d_m,
                                         fs.leg.course_rad if fs.leg else nav.psi_rad,
                                         fs.speed_ref_mps))
         if fs.leg is None:
-            if self._psi_hold is None:
+            if math.isfinite(fs.heading_rad):
+                self._psi_hold = fs.heading_rad
+            elif self._psi_hold is None:
                 self._psi_hold = nav.psi_rad
             dem = self.ctl.hold(nav, self._psi_hold)
         else:
             self._psi_hold = None
             along = fs.along_error_m if fs.mode == "follow" else None
             dem = self.ctl.step(nav, fs.leg, fs.leg.project(nav.x_m, nav.y_m)[1], along,
-                                fcfg.k_s, fcfg.k_i, fcfg.along_clamp_m)
+                                fs.k_s, fs.k_i, fcfg.along_clamp_m)
         return self._apply(t, nav, dem)
 
     def _tick_hold(self, t: float, nav: NavState, mode: Mode) -> Allocation:

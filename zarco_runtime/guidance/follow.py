@@ -1,39 +1,44 @@
 """Follow the AUV (paper VI): guidance from the AUV's estimated track.
 
-The target is the AUV's position now: the tracker's filter position (which
-follows a turn within a fix or two) carried forward to now with a velocity
-taken from
+The target is the AUV now, and the path it is on (:mod:`.follow_path`): the
+tracker's filter position carried forward along a straight line, or along
+the AUV's a-priori plan while the tracker has the AUV on it.  With a plan the
+path turns where the plan's legs turn, so the boat turns with the AUV at a
+corner instead of after the track has seen the turn.
 
-* the RLS line (vx, vy: the paper's estimate, smooth on straight legs) when it
-  is valid, the tracker has not just declared a turn, and the line agrees with
-  the filter (position and course);
-* otherwise the filter's own velocity, which follows a turn several seconds
-  before a new line is fitted.
+Two laws (``follow.law``):
 
-The ASV steers along a virtual leg from its own position to an aim point on
-the AUV's track (line of sight): with (a, c) the ASV's offset from the
-target along and across the AUV's course (a > 0 ahead, c > 0 to starboard),
-the aim point lies ``lookahead_m`` ahead of the target when the ASV is
-behind it, and ``lookahead_m`` ahead of the ASV's projection on the track
-when it is ahead::
+``los``, line of sight.  The ASV steers along a virtual leg from its own
+position to an aim point on the AUV's path: with (a, c) the ASV's offset from
+the target along and across the path (a > 0 ahead, c > 0 to starboard), the
+aim point lies ``lookahead_m`` ahead of the target when the ASV is behind it,
+and ``lookahead_m`` ahead of the ASV's projection on the path when it is
+ahead::
 
-    aim = p_AUV + (max(a, 0) + Δ) u        u the unit vector of the AUV's course
+    aim = path(max(a, 0) + Δ)        path(a): the point a metres along the path
 
-so the ASV converges onto the AUV's track at atan(c/Δ) when alongside, and
-heads for the AUV itself when far behind (through turns, and while a new
-line is being fitted).  The ASV is on its own virtual leg (cross-track 0);
-the line controller's heading law steers its course over ground along it.
-
-Speed: the paper's surge law X = F_f(v_AUV) + k_v(v_AUV − v) + k_s(s_AUV − s)
-+ k_i∫(s_AUV − s) dt, with the catch-up moved into the speed reference::
+so the ASV converges onto the AUV's track at atan(c/Δ) when alongside, heads
+for the AUV itself when far behind, and, on a plan, starts its turn Δ before
+the AUV reaches a corner (it cuts the corner as the AUV does).  The ASV is on
+its own virtual leg (cross-track 0); the line controller's heading law steers
+its course over ground along it.  Speed: the paper's surge law X = F_f(v_AUV)
++ k_v(v_AUV − v) + k_s(s_AUV − s) + k_i∫(s_AUV − s) dt, with the catch-up
+moved into the speed reference::
 
     v_ref = clamp(v_AUV − a / τ_c, v_min, v_max) / max(cos θ, 0.5)
 
-θ the angle between the leg and the AUV's course (the along-track part of the
-ASV's speed is what closes the gap), v_min enough to steer across a current.
-The line controller's speed loop then adds the feedforward F_f(v_ref) that
-catching up needs; k_s and k_i (on ``along_error_m``, the lead when the AUV is
-ahead, 0 when the boat is) only trim what is left.
+θ the angle between the leg and the direction from the target to the aim
+point (the part of the ASV's speed along it is what closes the gap), v_min
+enough to steer across a current.  The line controller's speed loop then adds
+the feedforward F_f(v_ref) that catching up needs; k_s and k_i (on
+``along_error_m``, the lead when the AUV is ahead, 0 when the boat is) only
+trim what is left.
+
+``paper``, the paper's law as printed (:mod:`.follow_paper`): the leg is the
+AUV's line — through the target along its course, or the plan's leg the path
+is on ``lookahead_m`` ahead of the target — tracked by the line controller at
+the AUV's speed, the surge force adding ``paper_k_s``·(s_AUV − s) +
+``paper_k_i``·∫(s_AUV − s) dt, either sign.
 
 When the track is lost (no fix for the configured time, a covariance too
 large, or the tracker says so) the boat slows down and holds the position
@@ -48,9 +53,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from zarco_core.auv_messages import AuvTrack, TrackFlags
-from zarco_core.config import spec
+from zarco_core.auv_messages import AuvPlan, AuvTrack, TrackFlags
+from zarco_runtime.guidance.follow_paper import follow_geometry
+from zarco_runtime.guidance.follow_path import (
+    PlanPath,
+    StraightPath,
+    Target,
+    plan_target,
+    target_now,
+)
+from zarco_runtime.guidance.follow_settings import FollowSettings
 from zarco_runtime.guidance.mission import Leg
+from zarco_runtime.tracking.plan import Plan
+
+__all__ = ["FollowGuidance", "FollowSettings", "FollowState", "Target", "target_now"]
 
 #: below this AUV speed (m/s) the course is undefined: hold above it
 V_MIN_MPS = 0.05
@@ -67,54 +83,9 @@ MAX_LEAD_RAD = math.radians(90.0)
 MOVING_SIGMAS = 1.5
 #: length of the virtual leg laid past the aim point (m)
 LEG_PAST_AIM_M = 100.0
-
-
-@dataclass(slots=True)
-class FollowSettings:
-    """``[follow]`` table of the runtime configuration."""
-
-    k_s: float = spec(5.0, "N/m", "surge force per metre the AUV is ahead along its track "
-                      "(the speed reference already closes the gap)", min=0.0, max=1e4)
-    k_i: float = spec(0.0, "N/(m s)", "integral of the along-track lead (the speed loop's "
-                      "integral already removes a steady lag)", min=0.0, max=1e4)
-    along_clamp_m: float = spec(8.0, "m", "along-track lead used at most by the surge law",
-                                min=0.1, max=1e4)
-    min_speed_mps: float = spec(0.3, "m/s", "slowest speed reference while following (ahead "
-                                "of the AUV): enough to steer across a current",
-                                min=0.0, max=3.0)
-    max_speed_mps: float = spec(1.5, "m/s", "fastest speed reference while catching up",
-                                min=0.1, max=3.0)
-    lookahead_m: float = spec(5.0, "m", "line-of-sight look-ahead Δ: the ASV converges "
-                              "onto the AUV's track at atan(offset/Δ)", min=0.5, max=100.0)
-    max_turn_rate_dps: float = spec(25.0, "deg/s", "the virtual leg's course turns no "
-                                    "faster than this (the estimate's jitter is not "
-                                    "steered)", min=1.0, max=360.0)
-    catchup_tau_s: float = spec(5.0, "s", "time constant of closing an along-track gap "
-                                "(speed reference v_AUV + gap/τ)", min=0.5, max=600.0)
-    target_tau_s: float = spec(1.5, "s", "the AUV's position is low-passed over this about "
-                               "its velocity (fixes move the aim smoothly)", min=0.01,
-                               max=60.0)
-    line_gate_m: float = spec(3.0, "m", "the RLS line is used only while its position "
-                              "agrees with the Kalman filter's within this plus 3σ",
-                              min=0.1, max=1000.0)
-    line_course_gate_deg: float = spec(20.0, "deg", "… and while its course agrees with the "
-                                       "Kalman filter's within this", min=1.0, max=180.0)
-    lost_after_s: float = spec(20.0, "s", "no accepted fix for this long → track lost",
-                               min=1.0, max=3600.0)
-    max_pos_sigma_m: float = spec(15.0, "m", "track position σ above this → track lost",
-                                  min=0.1, max=1e4)
-    new_line_deg: float = spec(20.0, "deg", "course change that starts a new virtual leg "
-                               "(the line controller resets its cross-track states)",
-                               min=1.0, max=180.0)
-    hold_radius_m: float = spec(1.5, "m", "while holding, drift freely within this radius",
-                                min=0.5, max=1000.0)
-    hold_above_sigma_m: float = spec(2.0, "m", "hold above a still AUV only once its "
-                                     "position σ is below this", min=0.1, max=100.0)
-    still_speed_mps: float = spec(0.3, "m/s", "a still AUV starts moving when its speed "
-                                  "exceeds this (and 1.5σ); a moving one stops when its "
-                                  "speed plus 2σ is below it", min=0.01, max=2.0)
-    hold_speed_mps: float = spec(0.5, "m/s", "speed back to the hold point", min=0.05,
-                                 max=2.0)
+#: the paper law's leg starts this far behind the AUV and ends this far ahead (m)
+PAPER_LEG_BEHIND_M = 50.0
+PAPER_LEG_AHEAD_M = 200.0
 
 
 @dataclass(slots=True)
@@ -123,7 +94,11 @@ class FollowState:
 
     ``d_m``: the ASV's cross-track offset from the AUV's track (m, > 0 to
     starboard); ``along_error_m``: how far the AUV is ahead of the ASV along
-    its course (m); ``target``: which estimate was followed (``line``, ``kf``).
+    its course (m); ``target``: which estimate was followed (``line``, ``kf``,
+    ``plan``); ``k_s`` (N/m), ``k_i`` (N/(m s)): the surge gains on
+    ``along_error_m`` of the law in use; ``heading_rad``: without a leg, the
+    heading to keep (NaN: the present one) — above an AUV waiting on its plan,
+    the course it will leave on.
     """
 
     mode: str  # "follow", "hold" (track lost), "wait" (no track yet)
@@ -133,45 +108,9 @@ class FollowState:
     speed_ref_mps: float
     reason: str = ""
     target: str = ""
-
-
-@dataclass(frozen=True, slots=True)
-class Target:
-    """The AUV now: position (NED m), velocity (m/s), and where it came from."""
-
-    x: float
-    y: float
-    vx: float
-    vy: float
-    source: str
-
-
-def target_now(track: AuvTrack, t: float, line_gate_m: float,
-               line_course_gate_rad: float = math.inf) -> Target:
-    """The AUV's position and velocity at runtime time ``t``: the Kalman
-    filter's position, carried to ``t`` with the RLS line's velocity while the
-    line is valid, settled (not just restarted by a turn) and consistent with
-    the filter (positions within ``line_gate_m`` + 3σ, courses within
-    ``line_course_gate_rad``), else with the filter's own velocity."""
-    dt = t - track.t0
-    kvx, kvy = track.kf_vx_mps, track.kf_vy_mps
-    kf = Target(track.kf_x_m + kvx * dt, track.kf_y_m + kvy * dt, kvx, kvy, "kf")
-    fl = track.flags
-    if not fl & TrackFlags.LINE_VALID or fl & TrackFlags.TURNING:
-        return kf
-    lx = track.x0_m + track.vx_mps * dt
-    ly = track.y0_m + track.vy_mps * dt
-    if not (math.isfinite(lx) and math.isfinite(ly)):
-        return kf
-    sigma = track.kf_pos_sigma_m if math.isfinite(track.kf_pos_sigma_m) else 0.0
-    if math.hypot(lx - kf.x, ly - kf.y) > line_gate_m + 3.0 * sigma:
-        return kf
-    if math.hypot(kvx, kvy) > V_MIN_MPS and abs(math.remainder(
-            math.atan2(kvy, kvx) - math.atan2(track.vy_mps, track.vx_mps), math.tau)
-            ) > line_course_gate_rad:
-        return kf
-    return Target(track.kf_x_m + track.vx_mps * dt, track.kf_y_m + track.vy_mps * dt,
-                  track.vx_mps, track.vy_mps, "line")
+    k_s: float = 0.0
+    k_i: float = 0.0
+    heading_rad: float = math.nan
 
 
 class FollowGuidance:
@@ -193,6 +132,11 @@ class FollowGuidance:
         self._cog: float | None = None
         self._sm: tuple[float, float, float] | None = None
         self._was_above = False
+        #: the AUV's plan (set_plan) and the target's smoothed (t, s, cross) on it
+        self.plan: Plan | None = None
+        self._plan_msg: AuvPlan | None = None
+        self._sm_plan: tuple[float, float, float] | None = None
+        self._plan_leg_id = -1
 
     def _lost_reason(self, track: AuvTrack | None, t: float) -> str:
         if track is None:
@@ -218,8 +162,14 @@ class FollowGuidance:
         if reason or track is None:
             self.target = None
             return self._hold(x, y, reason or "no AUV track yet")
-        tg = self._smooth(target_now(track, t, cfg.line_gate_m,
-                                     math.radians(cfg.line_course_gate_deg)), t)
+        tg = target_now(track, t, cfg.line_gate_m, math.radians(cfg.line_course_gate_deg))
+        on_plan = self._on_plan(track, t)
+        path: StraightPath | PlanPath
+        if on_plan is not None:
+            tg, path = on_plan
+        else:
+            tg = self._smooth(tg, t)
+            path = StraightPath(tg)
         self.target = tg
         v = math.hypot(tg.vx, tg.vy)
         # moving: the line's speed (re-seeded from the filter at every manoeuvre,
@@ -229,7 +179,12 @@ class FollowGuidance:
         cov = track.cov
         sv = math.sqrt(max(0.5 * (cov[10] + cov[15]), 0.0)) if len(cov) == 16 else 0.0
         v_line = math.hypot(track.vx_mps, track.vy_mps)
-        if not self.moving:
+        if on_plan is not None:
+            # on its plan the tracker's speed along it says it (a still AUV waiting
+            # at its plan's start is seen moving off along its first leg within
+            # a fix or two)
+            self.moving = v >= (0.5 if self.moving else 1.0) * cfg.still_speed_mps
+        elif not self.moving:
             self.moving = v_line >= max(cfg.still_speed_mps, MOVING_SIGMAS * sv)
         elif v_line + 2.0 * sv < cfg.still_speed_mps:
             self.moving = False
@@ -244,27 +199,37 @@ class FollowGuidance:
                        and (self._was_above or bool(track.flags & TrackFlags.LINE_VALID)))
             if not settled:
                 return self._hold(x, y, "AUV (nearly) still, track settling")
-            return self._above(tg, t, x, y)
+            return self._above(tg, t, x, y, path.course_at(0.0) if on_plan is not None
+                               else math.nan)
         self.hold = None
         self.mode = "follow"
-        ux, uy = tg.vx / v, tg.vy / v
-        ex, ey = x - tg.x, y - tg.y
-        a = ex * ux + ey * uy  # > 0: the ASV is ahead of the AUV
-        c = -ex * uy + ey * ux  # > 0: the ASV is to starboard of its track
+        if cfg.law == "paper":
+            return self._paper(tg, path, x, y)
+        return self._los(tg, path, t, x, y)
+
+    def _los(self, tg: Target, path: StraightPath | PlanPath, t: float, x: float,
+             y: float) -> FollowState:
+        """The line-of-sight law (module docstring)."""
+        cfg = self.cfg
+        v = math.hypot(tg.vx, tg.vy)
+        a, c = path.locate(x, y)  # a > 0: the ASV is ahead; c > 0: to starboard
         # far behind, aim nearer the AUV itself: its course (the noisiest part of
         # the estimate) then swings the aim less
         look = max(cfg.lookahead_m - max(-a, 0.0), MIN_LOOKAHEAD_FRACTION * cfg.lookahead_m)
         ahead = max(a, 0.0) + look
-        ax, ay = tg.x + ahead * ux, tg.y + ahead * uy
+        ax, ay = path.point(ahead)
         psi = self._steer(math.atan2(ay - y, ax - x), t)
-        if (self._psi_leg is None
-                or abs(math.remainder(psi - self._psi_leg, math.tau))
-                > math.radians(cfg.new_line_deg)):
-            self.leg_id += 1
-            self._psi_leg = psi
-        theta = math.remainder(psi - math.atan2(uy, ux), math.tau)
-        v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
-        v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
+        self._new_leg(psi)
+        if isinstance(path, PlanPath):
+            # be at the aim point when the AUV is: its straight distance from the
+            # boat over the time the AUV takes along its path to get there (a
+            # chord across a turn is shorter than the AUV's arc)
+            v_ref = v * math.hypot(ax - x, ay - y) / ahead
+            v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v_ref))
+        else:
+            theta = math.remainder(psi - math.atan2(ay - tg.y, ax - tg.x), math.tau)
+            v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
+            v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
         cp, sp = math.cos(psi), math.sin(psi)
         # from the ASV towards the aim point (along the rate-limited course), and on
         reach = math.hypot(ax - x, ay - y) + LEG_PAST_AIM_M
@@ -272,7 +237,93 @@ class FollowGuidance:
         # the along-track trim only pushes forward: ahead of the AUV the speed
         # reference slows the boat, and a reverse thrust would drive it the wrong
         # way while it still faces away from the AUV's course
-        return FollowState("follow", leg, c, max(-a, 0.0), v_ref, "", tg.source)
+        return FollowState("follow", leg, c, max(-a, 0.0), v_ref, "", tg.source, cfg.k_s,
+                           cfg.k_i)
+
+    def _paper(self, tg: Target, path: StraightPath | PlanPath, x: float,
+               y: float) -> FollowState:
+        """The paper's law (module docstring): the AUV's line — its plan's leg
+        ``lookahead_m`` ahead of it on a plan — at the AUV's speed."""
+        cfg = self.cfg
+        v = math.hypot(tg.vx, tg.vy)
+        lx, ly, course, ident = path.line(cfg.lookahead_m)
+        cp, sp = math.cos(course), math.sin(course)
+        g = follow_geometry(lx, ly, v * cp, v * sp, x, y, 0.0)
+        if g is None:  # not reached: the caller holds above a still AUV
+            return FollowState("follow", None, 0.0, 0.0, 0.0, "AUV (nearly) still", tg.source)
+        if ident >= 0:  # a plan leg: a new leg exactly when the plan's leg changes
+            if ident != self._plan_leg_id:
+                self._plan_leg_id = ident
+                self.leg_id += 1
+                self._psi_leg = course
+        else:
+            self._plan_leg_id = -1
+            self._new_leg(course)
+        leg = Leg(self.leg_id, lx - PAPER_LEG_BEHIND_M * cp, ly - PAPER_LEG_BEHIND_M * sp,
+                  lx + PAPER_LEG_AHEAD_M * cp, ly + PAPER_LEG_AHEAD_M * sp, v)
+        return FollowState("follow", leg, g.d_m, g.along_error_m, v, "", tg.source,
+                           cfg.paper_k_s, cfg.paper_k_i)
+
+    def _new_leg(self, psi: float) -> None:
+        """A new virtual leg (the line controller resets its cross-track states)
+        when the course ``psi`` (rad) moved more than ``new_line_deg`` from the
+        leg's."""
+        if (self._psi_leg is None
+                or abs(math.remainder(psi - self._psi_leg, math.tau))
+                > math.radians(self.cfg.new_line_deg)):
+            self.leg_id += 1
+            self._psi_leg = psi
+
+    # ------------------------------------------------------------ the plan
+
+    def set_plan(self, msg: AuvPlan | None) -> None:
+        """The AUV's plan (:class:`AuvPlan`; None or empty: none); the tracker's
+        ``plan_leg`` says when the AUV is on it.  A message already taken is
+        ignored."""
+        if msg is self._plan_msg:
+            return
+        self._plan_msg = msg
+        self._sm_plan = None
+        self.plan = None
+        if msg is not None and msg.points:
+            try:
+                self.plan = Plan(msg.points)
+            except ValueError:  # the tracker refused it too and says so
+                self.plan = None
+
+    def _on_plan(self, track: AuvTrack, t: float) -> tuple[Target, PlanPath] | None:
+        """The target carried along the plan, its position low-passed over
+        ``target_tau_s`` along the path (path coordinate and offset); None
+        without a plan, with the AUV off it, or a track older than the plan."""
+        plan, msg = self.plan, self._plan_msg
+        if plan is None or msg is None or track.t < msg.t or track.plan_leg < 0:
+            self._sm_plan = None
+            return None
+        got = plan_target(track, plan, t)
+        if got is None:
+            self._sm_plan = None
+            return None
+        tg, path = got
+        v = math.hypot(tg.vx, tg.vy)
+        r = path.radius
+        sm = self._sm_plan
+        if sm is None and self._sm is not None and t - self._sm[0] <= 1.0:
+            # on the plan from plan-free following: start from where the boat was aiming
+            s0, c0 = plan.nearest(self._sm[1], self._sm[2], path.s - TARGET_RESET_M,
+                                  path.s + TARGET_RESET_M, r)
+            sm = (self._sm[0], s0, c0)
+        if sm is not None and t > sm[0]:
+            s_pred = plan.advance(sm[1], v * (t - sm[0]), r)
+            if abs(path.s - s_pred) <= TARGET_RESET_M:
+                k = min(1.0, (t - sm[0]) / self.cfg.target_tau_s)
+                s = s_pred + k * (path.s - s_pred)
+                cross = sm[2] + k * (path.cross - sm[2])
+                x, y, course = plan.point_at(s, cross, r)
+                tg = Target(x, y, v * math.cos(course), v * math.sin(course), "plan")
+                path = PlanPath(plan, s, cross, r)
+        self._sm_plan = (t, path.s, path.cross)
+        self._sm = (t, tg.x, tg.y)  # plan-free following continues from here
+        return tg, path
 
     def _smooth(self, tg: Target, t: float) -> Target:
         """The target's position low-passed over ``target_tau_s`` about its own
@@ -292,9 +343,11 @@ class FollowGuidance:
         self._sm = (t, x, y)
         return Target(x, y, tg.vx, tg.vy, tg.source)
 
-    def _above(self, tg: Target, t: float, x: float, y: float) -> FollowState:
+    def _above(self, tg: Target, t: float, x: float, y: float,
+               course: float = math.nan) -> FollowState:
         """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
-        position, else go there (faster the further it is)."""
+        position (facing ``course``, rad, when it is known: on its plan, the
+        AUV will leave along it), else go there (faster the further it is)."""
         cfg = self.cfg
         self._was_above = True
         self.hold = None
@@ -302,7 +355,8 @@ class FollowGuidance:
         dist = math.hypot(tg.x - x, tg.y - y)
         if dist <= cfg.hold_radius_m:
             self._psi_ref = None
-            return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source)
+            return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
+                               heading_rad=course)
         psi = self._steer(math.atan2(tg.y - y, tg.x - x), t)
         if self._psi_leg is None or abs(math.remainder(psi - self._psi_leg, math.tau)) > \
                 math.radians(cfg.new_line_deg):

@@ -1,8 +1,9 @@
-"""Missions: a lines mission is a sequence of waypoints with a speed per leg.
+"""Missions: a lines mission is a sequence of waypoints with a speed per leg; a
+follow mission follows the AUV, optionally with the AUV's a-priori plan.
 
-Waypoints are given in the local NED frame (``frame = "ned"``: [north, east]
-metres) or geodetic (``frame = "geodetic"``: [lat, lon] degrees, converted
-about the configured origin).
+Waypoints and the AUV's plan are given in the local NED frame (``frame =
+"ned"``: [north, east] metres) or geodetic (``frame = "geodetic"``: [lat,
+lon] degrees, converted about the configured origin).
 """
 
 from __future__ import annotations
@@ -12,6 +13,11 @@ from dataclasses import dataclass
 
 from zarco_core.config import spec
 from zarco_core.geodesy import LocalFrame
+from zarco_runtime.tracking.plan import MAX_POINTS, check_points
+
+#: metres per degree of latitude (and of longitude at the equator), for the
+#: plausibility checks of geodetic points before the origin is known
+M_PER_DEG = 111_195.0
 
 
 @dataclass(slots=True)
@@ -30,6 +36,9 @@ class MissionConfig:
     laps: int = spec(1, "", "repeat a closed mission this many times", min=1, max=10000)
     autostart: bool | None = spec(None, "", "start this mission at boot (unset: false on the "
                                   "vessel, true in a scenario)")
+    auv_plan: list[list[float]] = spec(list, "m or deg", "follow: the AUV's a-priori mission, "
+                                       "[[north, east], ...] or [[lat, lon], ...] in this "
+                                       "frame (a prior for the tracker; empty: none)")
 
     def validate(self) -> None:
         if self.kind == "lines" and len(self.waypoints) < 2:
@@ -50,6 +59,37 @@ class MissionConfig:
             )
         if self.laps > 1 and self.waypoints and self.waypoints[0] != self.waypoints[-1]:
             raise ValueError("laps: repeating needs a closed mission (last waypoint = first)")
+        if self.auv_plan:
+            why = self._check_plan()
+            if why:
+                raise ValueError(why)
+
+    def _check_plan(self) -> str:
+        """Why ``auv_plan`` is not a plan in this mission ("" when it is), as
+        ``auv_plan[i]: reason``."""
+        if self.kind != "follow":
+            return f"auv_plan: only a follow mission has an AUV plan (kind = {self.kind!r})"
+        if len(self.auv_plan) > MAX_POINTS:
+            return f"auv_plan: has {len(self.auv_plan)} points, at most {MAX_POINTS}"
+        pts: list[tuple[float, float]] = []
+        for i, p in enumerate(self.auv_plan):
+            if len(p) != 2:
+                what = "[lat, lon]" if self.frame == "geodetic" else "[north, east]"
+                return f"auv_plan[{i}]: must be {what}, has {len(p)} numbers"
+            if self.frame == "geodetic":
+                lat, lon = p
+                if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+                    return f"auv_plan[{i}]: not a latitude, longitude: {p}"
+                # metres about the first point (plausibility only: the origin's
+                # frame converts them when the mission is built)
+                lat0, lon0 = self.auv_plan[0]
+                pts.append(((lat - lat0) * M_PER_DEG,
+                            math.remainder(lon - lon0, 360.0) * M_PER_DEG
+                            * math.cos(math.radians(lat0))))
+            else:
+                pts.append((p[0], p[1]))
+        why = check_points(pts)
+        return why.named("auv_plan") if why is not None else ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,18 +143,28 @@ def build_legs(mc: MissionConfig, frame: LocalFrame) -> list[Leg]:
 @dataclass(frozen=True, slots=True)
 class Mission:
     """A mission the supervisor can run: ``kind`` ``lines`` (its ``legs``, NED) or
-    ``follow`` (the AUV; no legs).  ``waypoints`` keeps the geodetic points
-    [lat_deg, lon_deg] it was given as (for ground stations and the state
-    file), ``name`` where it came from."""
+    ``follow`` (the AUV; no legs; ``auv_plan`` the AUV's a-priori plan, NED
+    points).  ``waypoints`` keeps the geodetic points [lat_deg, lon_deg] it
+    was given as (for ground stations and the state file), ``name`` where it
+    came from."""
 
     kind: str
     legs: tuple[Leg, ...] = ()
     name: str = ""
     waypoints: tuple[tuple[float, float], ...] = ()
+    #: follow: the AUV's a-priori plan, NED points (m); empty: none
+    auv_plan: tuple[tuple[float, float], ...] = ()
 
     @property
     def speed_mps(self) -> float:
         return self.legs[0].speed_mps if self.legs else 0.0
+
+
+def plan_points(mc: MissionConfig, frame: LocalFrame) -> tuple[tuple[float, float], ...]:
+    """``[mission] auv_plan`` as NED points (m) about ``frame``'s origin."""
+    if mc.frame == "geodetic":
+        return tuple(frame.to_ned(p[0], p[1]) for p in mc.auv_plan)
+    return tuple((float(p[0]), float(p[1])) for p in mc.auv_plan)
 
 
 def legs_from_points(points: list[tuple[float, float]], speed_mps: float) -> tuple[Leg, ...]:

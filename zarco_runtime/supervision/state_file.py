@@ -29,13 +29,15 @@ log = logging.getLogger("zarco.supervisor")
 
 def mission_to_json(m: Mission) -> dict[str, Any]:
     return {"kind": m.kind, "name": m.name, "waypoints": [list(w) for w in m.waypoints],
-            "legs": [[lg.n0, lg.e0, lg.n1, lg.e1, lg.speed_mps] for lg in m.legs]}
+            "legs": [[lg.n0, lg.e0, lg.n1, lg.e1, lg.speed_mps] for lg in m.legs],
+            "auv_plan": [list(p) for p in m.auv_plan]}
 
 
 def mission_from_json(d: dict[str, Any]) -> Mission:
     legs = tuple(Leg(i, *map(float, lg)) for i, lg in enumerate(d.get("legs", [])))
     wps = tuple((float(a), float(b)) for a, b in d.get("waypoints", []))
-    return Mission(str(d["kind"]), legs, str(d.get("name", "")), wps)
+    plan = tuple((float(a), float(b)) for a, b in d.get("auv_plan", []))
+    return Mission(str(d["kind"]), legs, str(d.get("name", "")), wps, plan)
 
 
 @dataclass(slots=True)

@@ -48,7 +48,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from zarco_core.auv_messages import AuvTrack
+from zarco_core.auv_messages import AuvPlan, AuvTrack
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.commands import (
@@ -98,6 +98,7 @@ from zarco_runtime.supervision.state_file import (
     mission_to_json,
 )
 from zarco_runtime.supervision.status import NOT_REFUSALS, device_summaries
+from zarco_runtime.tracking.plan import PlanError, geodetic_plan
 
 if TYPE_CHECKING:
     from zarco_runtime.settings import RuntimeConfig
@@ -168,6 +169,8 @@ class Supervisor:
         self.directive_t0 = self.directive.t
         self.auv_held = False
         self.mission: Mission | None = None  # the mission of the current mode
+        #: who gave the AUV plan of the follow mission being started
+        self.plan_source = "mission"
         self.state = state if state is not None else StateFile(cfg.supervisor.state_file)
         self.saved: SavedMission | None = self.state.load()
         self.loaded: Mission | None = self.boot.mission  # a mission given but not started
@@ -299,6 +302,11 @@ class Supervisor:
         if old in (Mode.LINES, Mode.FOLLOW) and mode not in (Mode.LINES, Mode.FOLLOW) \
                 and self.mission is not None:
             self._save_state()
+        if mode is Mode.FOLLOW or old is Mode.FOLLOW:
+            # the AUV's plan is in force while following: given when it starts,
+            # cleared when it ends
+            plan = mission.auv_plan if mode is Mode.FOLLOW and mission is not None else ()
+            self.bus.publish(AuvPlan(self.now(), plan, self.plan_source if plan else ""))
         self.mode = mode
         self.mission = mission
         self.seq += 1
@@ -470,7 +478,7 @@ class Supervisor:
         if isinstance(a, ModeArgs):
             return self._mode(a, src)
         if isinstance(a, FollowArgs):
-            return self._follow(src)
+            return self._follow(src, a)
         if isinstance(a, ThrustArgs):
             if not self.armed:
                 return "disarmed"
@@ -494,7 +502,7 @@ class Supervisor:
         if mode is Mode.HOLD:
             return self._hold(a, src)
         if mode is Mode.FOLLOW:
-            return self._follow(src)
+            return self._follow(src, None)
         if mode is Mode.LINES:
             m = self.loaded or (self.saved.mission if self.saved and not self.saved.complete
                                 and self.saved.mission.kind == "lines" else None)
@@ -527,14 +535,31 @@ class Supervisor:
         self._set_mode(Mode.HOLD, f"hold from {src}", point=point)
         return ""
 
-    def _follow(self, src: str) -> str:
+    def _follow(self, src: str, a: FollowArgs | None, m: Mission | None = None) -> str:
+        """Follow the AUV: with the mission ``m`` (a resumed or configured one), or
+        with the command's ``auv_plan`` ([[lat_deg, lon_deg], ...]; [] for none),
+        or without one, with the configured follow mission's plan."""
         why = self._cannot(Mode.FOLLOW)
         if why:
             return why
-        m = Mission("follow", name="follow")
+        if m is None:
+            boot = self.boot.mission
+            plan = boot.auv_plan if boot is not None and boot.kind == "follow" else ()
+            self.plan_source = "mission"
+            if a is not None and a.auv_plan is not None:
+                try:
+                    plan = geodetic_plan(a.auv_plan, self.frame.to_ned)
+                except PlanError as exc:
+                    return exc.named("auv_plan")
+                self.plan_source = src
+            m = Mission("follow", name="follow", auv_plan=plan)
+        else:
+            self.plan_source = "mission" if m is self.boot.mission else src
         self.saved = SavedMission(m)
         self._save_state()
-        self._set_mode(Mode.FOLLOW, f"follow from {src}", mission=m)
+        self._set_mode(Mode.FOLLOW, f"follow from {src}"
+                       + (f" with an AUV plan of {len(m.auv_plan)} points" if m.auv_plan
+                          else ""), mission=m)
         return ""
 
     def _mission(self, a: MissionArgs, src: str) -> str:
@@ -562,7 +587,7 @@ class Supervisor:
 
     def _start(self, m: Mission, leg: int, src: str) -> str:
         if m.kind == "follow":
-            return self._follow(src)
+            return self._follow(src, None, m)
         why = self._cannot(Mode.LINES)
         if why:
             return why

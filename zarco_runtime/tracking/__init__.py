@@ -22,6 +22,8 @@ Modules, in data-flow order:
 * :mod:`.maneuver` – manoeuvre detection (IMM state, cross-course CUSUM) and
   the turn declaration;
 * :mod:`.rls` – recursive least squares with forgetting on the line model;
-* :mod:`.tracker` – the glue, track flags, aging and lost declaration;
-* :mod:`.follow` – the follow-law geometry of the paper, section VI.
+* :mod:`.plan`, :mod:`.plan_geometry`, :mod:`.plan_progress` – the AUV's
+  a-priori plan: its legs and rounded corners, which leg the AUV is on, its
+  progress along the plan, leaving and re-joining it;
+* :mod:`.tracker` – the glue, track flags, aging and lost declaration.
 """

@@ -86,7 +86,7 @@ class RangeOnly:
     ``refused`` (gated), ``uninitialised`` or ``depth`` (nothing done); then
     the emission time (UTC s), the point (cx, cy) of the range circle nearest
     the prediction (m), the corrected range and the listener's (m), the
-    motion bias removed (m) and the range's variance (m²)."""
+    motion bias removed (m), the range's variance (m²) and the update's d²."""
 
     status: str
     t_em: float = math.nan
@@ -96,12 +96,13 @@ class RangeOnly:
     r_l: float = math.nan
     bias: float = 0.0
     var: float = math.nan
+    d2: float = math.nan
 
 
 class FixAssembly:
     """The fix stage of the tracker and its memory of accepted ranges."""
 
-    __slots__ = ("depth", "net", "p", "ranges")
+    __slots__ = ("depth", "last_chi2", "net", "p", "ranges", "var_scale")
 
     def __init__(self, params: TrackerParams, net: Network) -> None:
         self.p = params
@@ -109,6 +110,10 @@ class FixAssembly:
         self.depth = params.auv_depth_m
         #: newest accepted range to each beacon: (emission UTC s, range m, variance m²)
         self.ranges: dict[int, tuple[float, float, float]] = {}
+        #: the measured noise scale applied to the configured range variance
+        self.var_scale = 1.0
+        #: the last joint fix's residual χ² and its degrees of freedom (0: none)
+        self.last_chi2: tuple[float, int] = (math.nan, 0)
 
     def clear(self) -> None:
         self.ranges.clear()
@@ -254,13 +259,15 @@ class FixAssembly:
                   *self.other_ranges(kf, idx, t_em, fx, fy)]
         two = ls_fix(net, ranges[:2], depth, fx, fy, 1)
         c2 = (two[2], two[3], two[4]) if two is not None else (math.nan,) * 3
+        self.last_chi2 = (math.nan, 0)
         if len(ranges) > 2:
             # the joint solution, unless the ranges disagree (a false or late
             # detection in this cycle): then the cycle's own pair
             sol = ls_fix(net, ranges, depth, fx, fy)
             if sol is not None:
-                if ls_chi2(net, ranges, depth, sol[0], sol[1]) <= (
-                        p.gate_chi2 + 2.0 * (len(ranges) - 2)):
+                chi2 = ls_chi2(net, ranges, depth, sol[0], sol[1])
+                self.last_chi2 = (chi2, len(ranges) - 2)
+                if chi2 <= p.gate_chi2 + 2.0 * (len(ranges) - 2):
                     return sol, True
                 return (fx, fy, *c2), False
         return (fx, fy, *c2), True
@@ -307,11 +314,11 @@ class FixAssembly:
         dx, dy = px - net.north[idx], py - net.east[idx]
         r_hat = math.sqrt(dx * dx + dy * dy + dz * dz)
         j = range_jacobian(net, idx, px, py, depth)
-        var_i, _ = range_variances(net, idx, p.timing_sigma_s, p.range_sigma_m)
+        var_i = range_variances(net, idx, p.timing_sigma_s, p.range_sigma_m)[0] * self.var_scale
         z = [r - r_hat + j[0] * px + j[1] * py]
         # a fallback must agree well: it only replaces a reply, not the filter's doubt
         gate = p.soft_gate_chi2 if fallback else p.gate_chi2
-        ok, _d2 = kf.update([j], z, [var_i], gate, p.soft_gate_chi2)
+        ok, d2 = kf.update([j], z, [var_i], gate, p.soft_gate_chi2)
         # the point of the range circle nearest the prediction, for the record
         rho = max(horizontal_radius(r, dz), 0.0)
         hd = math.hypot(dx, dy)
@@ -321,4 +328,4 @@ class FixAssembly:
             cx, cy = px, py
         if ok:
             self.remember(idx, t_em, r, var_i)
-        return RangeOnly("ok" if ok else "refused", t_em, cx, cy, r, r_l, bias, var_i)
+        return RangeOnly("ok" if ok else "refused", t_em, cx, cy, r, r_l, bias, var_i, d2)

@@ -16,12 +16,14 @@ Models:
 
 At every step the models are mixed by a Markov chain whose switching
 probabilities follow the elapsed time (model j is left at the rate
-1/``sojourn_s[j]``, for the others in equal shares), each is propagated, and
+1/``sojourn_s[j]``: the quiet model for the others in equal shares, a
+manoeuvring one mostly for the quiet one, ``RETURN_SHARE``), each is propagated, and
 each is weighted by how well it predicted the measurement.  Gating is on the
 combined estimate (whose covariance holds the models' spread); each model
 down-weights an accepted measurement beyond ``soft_chi2`` by its own d²
 (Huber: the turning model takes a turn the quiet one discounts), and the
-models' likelihoods cap d² at ``LIKELIHOOD_CAP_CHI2`` (one outlier shifts the
+models' likelihoods are a Gaussian plus an outlier floor common to every model
+(one outlier shifts the
 probabilities by a bounded factor; a turn, several moderate innovations in a
 row, still does).
 
@@ -37,10 +39,20 @@ Plain Python on lists: 5×5 matrices are cheaper without numpy.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import NamedTuple
 
 N = 5
-#: d² beyond which an innovation weighs no more in the model likelihoods
-LIKELIHOOD_CAP_CHI2 = 6.0
+#: the share of the models left by a manoeuvring model that goes back to the
+#: quiet one (model 0); the rest is spread over the other manoeuvring models
+RETURN_SHARE = 0.8
+#: probability that a measurement is an outlier, and the span (m) over which an
+#: outlier may fall: the likelihood of every model has the floor
+#: ε (2π)^(m/2) / span^m (m measurement rows) besides its Gaussian
+OUTLIER_PROBABILITY = 0.05
+OUTLIER_SPAN_M = 30.0
+OUTLIER_DENSITY = tuple(OUTLIER_PROBABILITY * (2.0 * math.pi) ** (0.5 * m) / OUTLIER_SPAN_M ** m
+                        for m in (1, 2))
 #: variance of ω in a constant-velocity model ((rad/s)²: about 3 °/s 1σ)
 CV_OMEGA_VAR = 0.05 ** 2
 
@@ -52,14 +64,21 @@ def _zeros() -> list[list[float]]:
 class _Model:
     """One model of the bank: state (x, y, vx, vy, ω), covariance, dynamics."""
 
-    __slots__ = ("P", "kind", "q", "q_omega", "x")
+    __slots__ = ("P", "kind", "omega0", "omega0_var", "omega_max", "q", "q_omega", "x")
 
-    def __init__(self, kind: str, q: float, q_omega: float = 0.0) -> None:
+    def __init__(self, kind: str, q: float, q_omega: float = 0.0, omega0: float = 0.0,
+                 omega0_var: float = CV_OMEGA_VAR, omega_max: float = math.inf) -> None:
         if kind not in ("cv", "ct"):
             raise ValueError(f"model kind must be 'cv' or 'ct', got {kind!r}")
         self.kind = kind
         self.q = q
         self.q_omega = q_omega
+        #: the turn rate (rad/s) a turning model takes from a straight one when
+        #: they mix — the turn it expects the AUV to start — and its variance
+        self.omega0 = omega0
+        self.omega0_var = omega0_var
+        #: the turn rate is held within ± this (rad/s): the AUV turns no faster
+        self.omega_max = omega_max
         self.x = [0.0] * N
         self.P = _zeros()
 
@@ -135,6 +154,16 @@ class _Model:
         else:
             out[4][4] += self.q_omega * dt
         self.P = out
+        self._clamp()
+
+    def _clamp(self) -> None:
+        """Hold the turn rate within ± ``omega_max``."""
+        w = self.x[4]
+        lim = self.omega_max
+        if w > lim:
+            self.x[4] = lim
+        elif w < -lim:
+            self.x[4] = -lim
 
     def predicted_position(self, dt: float) -> tuple[float, float, float, float, float]:
         """(x, y, Pxx, Pxy, Pyy) after ``dt`` s, without changing the model."""
@@ -204,21 +233,48 @@ class _Model:
                 v = row[j] - sum(gk[r] * pht[j][r] for r in range(m))
                 row[j] = v
                 P[j][k] = v
+        self._clamp()
+
+
+def turn_step(x: float, y: float, vx: float, vy: float, w: float, dt: float
+              ) -> tuple[float, float, float, float]:
+    """Position and velocity after ``dt`` s of a coordinated turn at ``w`` rad/s
+    (positive to starboard; a straight line when w is 0)."""
+    if abs(w) < 1e-6:
+        return x + vx * dt, y + vy * dt, vx, vy
+    th = w * dt
+    s, c = math.sin(th), math.cos(th)
+    a, b = s / w, (1.0 - c) / w
+    return x + a * vx - b * vy, y + b * vx + a * vy, c * vx - s * vy, s * vx + c * vy
+
+
+class ModelSpec(NamedTuple):
+    """One model of the bank (:class:`_Model`): kind (``cv``, ``ct``), white
+    acceleration q (m²/s³), turn-rate random walk q_ω (rad²/s³), the turn rate
+    ω₀ (rad/s) and its variance it starts a turn with, the largest |ω| (rad/s)."""
+
+    kind: str
+    q: float
+    q_omega: float = 0.0
+    omega0: float = 0.0
+    omega0_var: float = CV_OMEGA_VAR
+    omega_max: float = math.inf
 
 
 class Imm:
     """A bank of :class:`_Model` mixed by a Markov chain (module docstring)."""
 
     __slots__ = ("P", "initialised", "models", "mu", "mu_floor", "mu_init", "omega",
-                 "sojourn_s", "t", "x")
+                 "omega_var", "sojourn_s", "t", "x")
 
-    def __init__(self, models: list[tuple[str, float, float]], sojourn_s: tuple[float, ...],
+    def __init__(self, models: Sequence[ModelSpec], sojourn_s: tuple[float, ...],
                  mu_init: tuple[float, ...] | None = None, mu_floor: float = 1e-3) -> None:
-        """``models``: (kind, q, q_ω) of each; model 0 is the quiet straight-line one."""
+        """``models``: the bank (:class:`ModelSpec`, or a tuple of its fields);
+        model 0 is the quiet straight-line one."""
         if len(models) < 2 or len(sojourn_s) != len(models):
             raise ValueError("Imm: at least two models, one sojourn time per model")
         n = len(models)
-        self.models = [_Model(k, q, qw) for k, q, qw in models]
+        self.models = [_Model(*m) for m in models]
         self.sojourn_s = tuple(sojourn_s)
         self.mu_init = tuple(mu_init) if mu_init is not None else tuple([1.0 / n] * n)
         self.mu_floor = mu_floor
@@ -227,12 +283,30 @@ class Imm:
         self.x = [0.0] * 4
         self.P = [[0.0] * 4 for _ in range(4)]
         self.omega = 0.0
+        self.omega_var = 0.0
         self.initialised = False
 
     @property
     def q(self) -> float:
         """The quiet model's acceleration density (m²/s³)."""
         return self.models[0].q
+
+    @property
+    def quiet_turn_rate(self) -> tuple[float, float]:
+        """The quiet model's turn rate (rad/s) and its variance: a steady arc."""
+        m = self.models[0]
+        return m.x[4], m.P[4][4]
+
+    def reset_quiet_turn_rate(self, var: float) -> None:
+        """Set the quiet model's turn rate back to 0 with variance ``var``
+        (rad²/s²): a sharp turn is over, the AUV flies straight until its
+        measurements say it arcs."""
+        m = self.models[0]
+        m.x[4] = 0.0
+        for k in range(4):
+            m.P[k][4] = m.P[4][k] = 0.0
+        m.P[4][4] = var
+        self._combine()
 
     @property
     def maneuver_probability(self) -> float:
@@ -243,11 +317,11 @@ class Imm:
              pos_var: float = 25.0, vel_var: float = 1.0) -> None:
         """Start every model at time ``t`` from the same state (ω = 0)."""
         for mdl in self.models:
-            mdl.x = [x, y, vx, vy, 0.0]
+            mdl.x = [x, y, vx, vy, mdl.omega0]
             P = _zeros()
             P[0][0] = P[1][1] = pos_var
             P[2][2] = P[3][3] = vel_var
-            P[4][4] = CV_OMEGA_VAR
+            P[4][4] = mdl.omega0_var
             mdl.P = P
         self.mu = list(self.mu_init)
         self.t = t
@@ -257,17 +331,23 @@ class Imm:
     def reset(self) -> None:
         self.initialised = False
 
-    def _mixture(self, w: list[float]) -> tuple[list[float], list[list[float]]]:
-        """Moment-matched mean and covariance of the models weighted by ``w``."""
+    def _mixture(self, w: list[float], omega0: float = 0.0, omega0_var: float = CV_OMEGA_VAR
+                 ) -> tuple[list[float], list[list[float]]]:
+        """Moment-matched mean and covariance of the models weighted by ``w``, the
+        straight models' turn rate taken as ``omega0`` (rad/s) with variance
+        ``omega0_var``."""
         ms = self.models
-        x = [sum(w[i] * ms[i].x[k] for i in range(len(ms))) for k in range(N)]
+        xs = [mdl.x if mdl.kind == "ct" else [*mdl.x[:4], omega0] for mdl in ms]
+        x = [sum(w[i] * xs[i][k] for i in range(len(ms))) for k in range(N)]
         P = _zeros()
         for i, mdl in enumerate(ms):
             wi = w[i]
             if wi == 0.0:
                 continue
-            d = [mdl.x[k] - x[k] for k in range(N)]
+            d = [xs[i][k] - x[k] for k in range(N)]
             Pi = mdl.P
+            if mdl.kind == "cv" and Pi[4][4] != omega0_var:
+                Pi = [*Pi[:4], [*Pi[4][:4], omega0_var]]
             for a in range(N):
                 row, pa, da = P[a], Pi[a], d[a]
                 for b in range(N):
@@ -279,6 +359,7 @@ class Imm:
         self.x = x[:4]
         self.P = [row[:4] for row in P[:4]]
         self.omega = x[4]
+        self.omega_var = P[4][4]
 
     def predict(self, t: float) -> None:
         """Mix the models for the time elapsed, then propagate each to ``t``."""
@@ -291,11 +372,18 @@ class Imm:
         p = []
         for i in range(n):
             stay = math.exp(-dt / self.sojourn_s[i])
-            leave = (1.0 - stay) / (n - 1)
-            p.append([stay if j == i else leave for j in range(n)])
+            if i == 0 or n == 2:
+                leave = (1.0 - stay) / (n - 1)
+                p.append([stay if j == i else leave for j in range(n)])
+                continue
+            # a manoeuvre ends mostly back on a straight line
+            back = (1.0 - stay) * RETURN_SHARE
+            other = (1.0 - stay) * (1.0 - RETURN_SHARE) / (n - 2)
+            p.append([stay if j == i else back if j == 0 else other for j in range(n)])
         cbar = [sum(p[i][j] * mu[i] for i in range(n)) for j in range(n)]
         mixed = [self._mixture([p[i][j] * mu[i] / cbar[j] if cbar[j] > 0.0 else 0.0
-                                for i in range(n)]) for j in range(n)]
+                                for i in range(n)], ms[j].omega0, ms[j].omega0_var)
+                 for j in range(n)]
         for mdl, (x0, P0) in zip(ms, mixed, strict=True):
             mdl.x = x0
             mdl.P = P0
@@ -357,10 +445,12 @@ class Imm:
                 mdl.update(rows, z, [v * dj / soft_chi2 for v in var])
             else:
                 mdl.update(rows, z, var)
-            # a capped loss: beyond LIKELIHOOD_CAP_CHI2 an innovation is no more
-            # evidence for one model than for another (one outlier is not a turn;
-            # a turn shows as several moderate innovations in a row)
-            logl.append(-0.5 * min(dj, LIKELIHOOD_CAP_CHI2) - 0.5 * ldet)
+            # the model's Gaussian or an outlier, whatever the model: an innovation
+            # far out in every model is no more evidence for one than for another
+            # (one outlier is not a turn), while one a model explains well (a turn
+            # the turning model follows) is
+            floor = OUTLIER_DENSITY[len(rows) - 1]
+            logl.append(math.log(math.exp(-0.5 * dj - 0.5 * ldet) + floor))
         top = max(logl)
         if math.isfinite(top):
             w = [m * math.exp(ll - top) for m, ll in zip(self.mu, logl, strict=True)]

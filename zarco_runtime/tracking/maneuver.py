@@ -32,11 +32,17 @@ from zarco_runtime.tracking.imm import Imm
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.params import TrackerParams
 
+#: the quiet model's turn rate is averaged over this long (s) to tell an arc
+ARC_TAU_S = 10.0
+#: 1σ (deg/s) of the quiet model's turn rate once a sharp turn is over
+QUIET_RATE_SIGMA_DPS = 0.5
+
 
 class ManeuverDetector:
     """The CUSUM's state, the IMM's manoeuvre state and the pending line restart."""
 
-    __slots__ = ("cusum_neg", "cusum_pos", "line_restart", "maneuvering", "p", "turn_utc")
+    __slots__ = ("arc_rate", "arc_t", "arcing", "cusum_neg", "cusum_pos", "line_restart",
+                 "maneuvering", "p", "turn_utc")
 
     def __init__(self, params: TrackerParams) -> None:
         self.p = params
@@ -44,6 +50,10 @@ class ManeuverDetector:
         self.cusum_neg = 0.0
         #: the IMM's manoeuvring model dominates
         self.maneuvering = False
+        #: the AUV flies an arc; the quiet turn rate's average (rad/s) and its time
+        self.arcing = False
+        self.arc_rate = 0.0
+        self.arc_t = math.nan
         #: a turn was declared: restart the line at the next update
         self.line_restart = False
         self.turn_utc = -math.inf
@@ -51,6 +61,23 @@ class ManeuverDetector:
     def reset(self) -> None:
         """A (re)initialised filter starts straight."""
         self.maneuvering = False
+        self.arcing = False
+        self.arc_rate = 0.0
+        self.arc_t = math.nan
+
+    def _arc(self, kf: Imm) -> bool:
+        """Whether the AUV flies an arc (:meth:`imm_state`)."""
+        w, _ = kf.quiet_turn_rate
+        t = kf.t
+        if not math.isfinite(self.arc_t) or t <= self.arc_t:
+            self.arc_rate = w if not math.isfinite(self.arc_t) else self.arc_rate
+        else:
+            a = min(1.0, (t - self.arc_t) / ARC_TAU_S)
+            self.arc_rate += a * (w - self.arc_rate)
+        self.arc_t = t
+        lim = math.radians(self.p.arc_rate_dps)
+        self.arcing = abs(self.arc_rate) >= (0.5 * lim if self.arcing else lim)
+        return self.arcing
 
     def declare(self, kf: CvKalman | Imm, restart_line: bool = True) -> None:
         """A turn: add the turn covariance to the filter and (optionally) mark
@@ -98,12 +125,16 @@ class ManeuverDetector:
 
     def imm_state(self, kf: CvKalman | Imm) -> str:
         """The IMM's manoeuvre state after an update: ``enter`` (the manoeuvring
-        model's probability rose to ``maneuver_on``), ``during``, ``exit`` (it
-        fell to ``maneuver_off``), or "" (straight, or a single-model filter)."""
+        models' probability rose to ``maneuver_on``), ``during``, ``exit`` (it
+        fell to ``maneuver_off``), or "" (straight, or a single-model filter).
+        Updates :attr:`arcing` besides: the quiet model's turn rate, averaged
+        over ``ARC_TAU_S``, at least ``arc_rate_dps`` (and until it falls below
+        half that) — a steady turn the straight line would lag."""
         if not isinstance(kf, Imm):
             return ""
         mu = kf.maneuver_probability
         p = self.p
+        arc = self._arc(kf)
         if not self.maneuvering:
             if mu >= p.maneuver_on:
                 self.maneuvering = True
@@ -111,5 +142,9 @@ class ManeuverDetector:
             return ""
         if mu <= p.maneuver_off:
             self.maneuvering = False
+            if not arc:
+                # a sharp turn is over: what the quiet model learnt of it is no arc
+                kf.reset_quiet_turn_rate(math.radians(QUIET_RATE_SIGMA_DPS) ** 2)
+                self.arc_rate = 0.0
             return "exit"
         return "during"

@@ -15,10 +15,11 @@ distances d_i, physical reply windows).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from zarco_core.config import spec
 from zarco_core.lbl import LblNetworkParams
+from zarco_runtime.tracking.plan import PlanParams
 
 #: inputs the RLS line fit may take
 RLS_INPUTS = ("kf", "fix")
@@ -31,6 +32,7 @@ class TrackerParams:
     """Passive AUV tracker: cycle gates, fix, Kalman filter, RLS, track loss."""
 
     network: LblNetworkParams = spec(LblNetworkParams, "", "the LBL network")
+    plan: PlanParams = spec(PlanParams, "", "matching the AUV to its a-priori plan")
     auv_depth_m: float = spec(10.0, "m", "the AUV's (known, constant) depth, positive down",
                               min=0.0, max=6000.0)
     sequence: list[int] = spec([], "", "beacon ids in the AUV's interrogation order, "
@@ -60,6 +62,12 @@ class TrackerParams:
     accel_psd: float = spec(0.004, "m²/s³", "constant-velocity model: white-acceleration "
                             "spectral density q (the quiet model of the IMM)",
                             min=1e-8, max=100.0)
+    arc_rate_psd: float = spec(1e-5, "rad²/s³", "IMM: turn-rate random walk of the quiet "
+                               "model (a straight line, or an arc it follows without lag)",
+                               min=0.0, max=1.0)
+    arc_rate_dps: float = spec(0.4, "deg/s", "IMM: an estimated turn rate at least this "
+                               "is a turn (an arc: the line follows the filter while it "
+                               "lasts)", min=0.0, max=90.0)
     motion_model: str = spec("imm", "", "the AUV filter: 'imm' (models side by side: "
                              "straight, manoeuvring, coordinated turn) or 'cv' (one "
                              "constant-velocity model)", choices=list(MOTION_MODELS))
@@ -70,6 +78,12 @@ class TrackerParams:
                                  "coordinated-turn model", min=1e-8, max=100.0)
     turn_rate_psd: float = spec(0.003, "rad²/s³", "IMM: turn-rate random walk of the "
                                 "coordinated-turn model", min=1e-8, max=10.0)
+    turn_rate_dps: float = spec(10.0, "deg/s", "IMM: the AUV's usual turn rate; two "
+                                "coordinated-turn models (to port, to starboard) expect "
+                                "turns at it (a third estimates any rate: arcs)",
+                                min=0.0, max=90.0)
+    max_turn_rate_dps: float = spec(20.0, "deg/s", "IMM: the AUV never turns faster than "
+                                    "this", min=0.1, max=180.0)
     straight_sojourn_s: float = spec(60.0, "s", "IMM: mean time the AUV keeps a straight "
                                      "line (sets the switching probability)",
                                      min=1.0, max=1e5)
@@ -95,6 +109,10 @@ class TrackerParams:
     reacquire_after: int = spec(3, "", "gated fixes within init_window_s that make the "
                                 "tracker test whether the fixes, not the filter, are right "
                                 "(and re-initialise from them if so)", min=1, max=1000)
+    reanchor_after: int = spec(3, "", "consistent fixes (the other beacons agree) refused "
+                               "in a row after which the filter's covariance is opened "
+                               "until the fix passes (re-anchoring, not coasting)",
+                               min=1, max=1000)
     init_window_s: float = spec(30.0, "s", "fixes this recent vote for the mirror choice at "
                                 "(re)initialisation", min=1.0, max=600.0)
     init_agree_m: float = spec(10.0, "m", "candidates from two baselines agree within this "
@@ -140,6 +158,20 @@ class TrackerParams:
                                min=0.1, max=3600.0)
     lost_sigma_m: float = spec(30.0, "m", "predicted position 1σ above this: LOST",
                                min=0.1, max=1e5)
+    calibrate: bool = spec(True, "", "estimate the sound speed (and per-beacon range "
+                           "biases) online from the redundancy of the ranges; off: the "
+                           "configured network is taken as exact")
+    sound_speed_sigma_mps: float = spec(10.0, "m/s", "1σ uncertainty of the configured "
+                                        "sound speed (a CTD cast: 5–10 m/s)",
+                                        min=0.01, max=100.0)
+    sound_speed_walk_mps: float = spec(0.01, "m/s/√s", "random walk of the sound speed "
+                                       "(how fast the water may change it)",
+                                       min=0.0, max=10.0)
+    sound_speed_converged_mps: float = spec(1.5, "m/s", "the estimate has converged when "
+                                            "its 1σ is at most this", min=0.01, max=100.0)
+    range_bias_sigma_m: float = spec(1.0, "m", "1σ prior of each beacon's range bias (a "
+                                     "turnaround error of 1 ms is 0.75 m; 0: no bias "
+                                     "estimated)", min=0.0, max=100.0)
     clock_tol_s: float = spec(2.0, "s", "an event whose runtime-minus-UTC time differs "
                               "from the running estimate by more than this is refused "
                               "(`clock`), unless 5 in a row agree (the clock jumped)",
@@ -198,6 +230,12 @@ class Network:
                    tuple(tau[i] - timing_tol_s for i in range(len(ids))),
                    tuple(tau[i] + 2.0 * d[i] / c + timing_tol_s for i in range(len(ids))),
                    p.auv_delay_s, c, k, timing_tol_s)
+
+    def with_sound_speed(self, c: float) -> Network:
+        """The same network with sound speed ``c`` (m/s) and its reply windows."""
+        tol = self.tol
+        return replace(self, c=c, reply_hi=tuple(
+            self.tau[i] + 2.0 * self.d[i] / c + tol for i in range(len(self.ids))))
 
     @property
     def n(self) -> int:

@@ -132,6 +132,19 @@ class LineRls:
         d = t - self.t0
         return self.x0 + self.vx * d, self.y0 + self.vy * d
 
+    def covariance_at(self, t: float) -> tuple[float, ...]:
+        """:meth:`covariance` with the time origin moved to ``t`` (the line's
+        position then at ``t``; no forgetting applied)."""
+        d = t - self.t0
+        s2 = self.sigma2
+        a = s2 * (self.p00 + 2.0 * d * self.p01 + d * d * self.p11)
+        b = s2 * (self.p01 + d * self.p11)
+        c = s2 * self.p11
+        return (a, 0.0, b, 0.0,
+                0.0, a, 0.0, b,
+                b, 0.0, c, 0.0,
+                0.0, b, 0.0, c)
+
     def covariance(self) -> tuple[float, ...]:
         """4×4 covariance of (x0, y0, vx, vy), row-major (σ² P on each axis,
         no cross-axis terms)."""

@@ -1,18 +1,21 @@
-"""Tracking on the bus: AcousticEvent / BuoyStatus → AuvFix, AuvTrack.
+"""Tracking on the bus: AcousticEvent / BuoyStatus / AuvPlan → AuvFix, AuvTrack.
 
 The tracker folds each acoustic event in as the buoy driver publishes it (a
 bus listener: a median of ~15 µs per event) and publishes the fixes and track
 updates it produced; a 1 Hz task ages the track so that a silent feed makes
-it stale and then lost.
+it stale and then lost.  The AUV's plan (:class:`AuvPlan`, from the
+supervisor) goes to the tracker's plan matcher, whose news (the AUV on its
+plan, off it, back on it) goes out as ``mission`` events.
 """
 
 from __future__ import annotations
 
 import asyncio
 
-from zarco_core.auv_messages import AcousticEvent, BuoyStatus
+from zarco_core.auv_messages import AcousticEvent, AuvPlan, BuoyStatus
 from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock
+from zarco_core.messages import Event
 from zarco_runtime.tracking.params import TrackerParams
 from zarco_runtime.tracking.tracker import AuvTracker
 
@@ -29,6 +32,7 @@ class Tracking:
         on = listen or bus.listen
         on(AcousticEvent, self._on_event)
         on(BuoyStatus, self.tracker.on_status)
+        on(AuvPlan, self._on_plan)
         self.fixes = 0
         self.tracks = 0
 
@@ -36,6 +40,18 @@ class Tracking:
         publish = self.bus.publish
         for m in self.tracker.process(ev):
             publish(m)
+        if self.tracker.plan.events:
+            self._plan_events(ev.t)
+
+    def _on_plan(self, plan: AuvPlan) -> None:
+        self.tracker.plan.set_plan(plan.points, plan.source)
+        self._plan_events(plan.t)
+
+    def _plan_events(self, t: float) -> None:
+        events = self.tracker.plan.events
+        for text in events:
+            self.bus.publish(Event(t, "mission", text, "tracker"))
+        events.clear()
 
     async def run(self) -> None:
         """Age the track once a second (publishes it, lost or not)."""

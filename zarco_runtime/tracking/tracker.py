@@ -72,15 +72,25 @@ from typing import Any
 from zarco_core.auv_messages import AuvFix, AuvTrack, BuoyStatus, TrackFlags
 from zarco_runtime.tracking.acquire import Acquisition, InitEntry
 from zarco_runtime.tracking.assembly import FixAssembly, Prediction
+from zarco_runtime.tracking.calibration import SoundSpeedEstimator
 from zarco_runtime.tracking.cycles import Cycle, CycleAssembler
-from zarco_runtime.tracking.fix import CircleFix, cycle_ranges, range_variances
-from zarco_runtime.tracking.imm import Imm
+from zarco_runtime.tracking.fix import CircleFix, CycleRanges, cycle_ranges, range_variances
+from zarco_runtime.tracking.gates import NoiseScale
+from zarco_runtime.tracking.imm import Imm, ModelSpec, turn_step
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.maneuver import ManeuverDetector
 from zarco_runtime.tracking.params import Network, TrackerParams
+from zarco_runtime.tracking.plan import PlanMatcher
 from zarco_runtime.tracking.rls import LineRls
 from zarco_runtime.tracking.timemap import ClockCheck, TimeMap
 
+#: the ranges are recomputed at a new sound speed once the estimate moved this far (m/s)
+SOUND_SPEED_STEP_MPS = 0.01
+#: 1σ (deg/s) of the turn rate the two fixed-rate turning models start a turn with
+TURN_RATE_SIGMA_DPS = 2.0
+#: the measured noise scale learns from updates while the IMM's probability of a
+#: manoeuvre is at most this
+STRAIGHT_NOISE_PROBABILITY = 0.2
 #: cycles dropped in a row after which the prediction no longer narrows the
 #: closing window (see AuvTracker._predict_range)
 WINDOW_OFF_DROPS = 6
@@ -96,18 +106,34 @@ class AuvTracker:
     def __init__(self, params: TrackerParams) -> None:
         params.validate()
         self.p = params
-        self.net: Network = Network.from_params(params.network, params.timing_tol_s)
+        #: the network as configured (the prior sound speed c₀)
+        self.net0: Network = Network.from_params(params.network, params.timing_tol_s)
+        #: the network at the estimated sound speed (what the ranges are computed with)
+        self.net: Network = self.net0
+        self.cal: SoundSpeedEstimator | None = (SoundSpeedEstimator(params, self.net0)
+                                                if params.calibrate else None)
+        self._cal_restart = True
         self.depth = params.auv_depth_m
         self.cycles = CycleAssembler(self.net, params.auv_depth_m, params.max_range_m,
                                      params.sequence, self._predict_range, 4.0,
                                      params.closing_margin_m)
         self.kf: CvKalman | Imm
         if params.motion_model == "imm":
-            self.kf = Imm([("cv", params.accel_psd, 0.0),
-                           ("cv", params.maneuver_accel_psd, 0.0),
-                           ("ct", params.turn_accel_psd, params.turn_rate_psd)],
+            w0 = math.radians(params.turn_rate_dps)
+            w_max = math.radians(params.max_turn_rate_dps)
+            w_var = math.radians(TURN_RATE_SIGMA_DPS) ** 2
+            turn = ModelSpec("ct", params.turn_accel_psd, params.turn_rate_psd,
+                             omega_max=w_max)
+            self.kf = Imm([ModelSpec("ct", params.accel_psd, params.arc_rate_psd,
+                                     omega_max=w_max),
+                           ModelSpec("cv", params.maneuver_accel_psd), turn,
+                           turn._replace(q_omega=w_var / params.turn_sojourn_s, omega0=w0,
+                                         omega0_var=w_var),
+                           turn._replace(q_omega=w_var / params.turn_sojourn_s, omega0=-w0,
+                                         omega0_var=w_var)],
                           (params.straight_sojourn_s, params.maneuver_sojourn_s,
-                           params.turn_sojourn_s), (0.5, 0.25, 0.25))
+                           params.turn_sojourn_s, params.turn_sojourn_s, params.turn_sojourn_s),
+                          (0.6, 0.1, 0.1, 0.1, 0.1))
         else:
             self.kf = CvKalman(params.accel_psd)
         self.rls = LineRls(params.rls_forgetting, params.turn_cusum_drift,
@@ -116,6 +142,9 @@ class AuvTracker:
         self.acq = Acquisition(params, self.net)
         self.asm = FixAssembly(params, self.net)
         self.man = ManeuverDetector(params)
+        self.noise = NoiseScale()
+        #: consistent fixes refused in a row (re-anchoring)
+        self._refused_run = 0
         self.dropped: Counter[str] = Counter()
         #: fixes accepted by the filter, and all two-circle fixes computed
         self.fixes_accepted = 0
@@ -131,6 +160,8 @@ class AuvTracker:
         self._bad_geometry = False
         self._last_range_only = False
         self._buoy_fault = False
+        #: the AUV's a-priori plan: which leg it is on, its progress (:mod:`.plan`)
+        self.plan = PlanMatcher(params.plan)
 
     # ------------------------------------------------------------ public API
 
@@ -175,6 +206,8 @@ class AuvTracker:
                 return out[-1]  # type: ignore[return-value]
             if self.last_track is None:
                 return None
+            if self.kf.initialised and not self._lost:
+                return self._predicted(t, self.last_track)
             return self._track(t, self.last_track)
         except Exception:
             self.dropped["internal"] += 1
@@ -245,7 +278,7 @@ class AuvTracker:
     def _on_cycle(self, cyc: Cycle, out: Out) -> None:
         net = self.net
         p = self.p
-        rg = cycle_ranges(cyc, net)
+        rg = self._ranges(cyc)
         r_i, r_l = rg.r_i, rg.r_l
         if math.isnan(r_l):  # no reply heard: the range to the beacon only
             r_l = r_i
@@ -270,7 +303,9 @@ class AuvTracker:
         self._bad_geometry = cf.gap_m > 0.0
         entry = InitEntry(t_em, idx, cf, r_i, r_l)
         self.acq.buf.append(entry)
-        var_i, var_l = range_variances(net, idx, p.timing_sigma_s, p.range_sigma_m)
+        var0 = range_variances(net, idx, p.timing_sigma_s, p.range_sigma_m)
+        scale = self.noise.scale
+        var_i, var_l = var0[0] * scale, var0[1] * scale
         if not kf.initialised:
             voted = self.acq.vote()
             if voted is None:
@@ -283,14 +318,59 @@ class AuvTracker:
             self._emit_fix(cyc, t_em, cf, fx, fy, r_i, r_l, bias, True, out)
             self._accepted(t_em, cyc.t, fx, fy, var_i + var_l, out)
             return
-        self._track_cycle(cyc, rg.r_i, t_em, cf, entry, r_i, r_l, bias, var_i, var_l, out)
+        self._track_cycle(cyc, rg.r_i, t_em, cf, entry, r_i, r_l, bias, var_i, var_l, var0,
+                          out)
+
+    def _ranges(self, cyc: Cycle) -> CycleRanges:
+        """The cycle's ranges at the estimated sound speed, corrected for the
+        estimated range bias of its beacon (:mod:`.calibration`)."""
+        net = self.net
+        rg = cycle_ranges(cyc, net)
+        if self.cal is not None:
+            b = self.cal.bias(rg.index)
+            if b != 0.0:
+                rg.r_i -= b
+                if rg.index != net.listener:
+                    rg.r_l += b
+                    rg.emission_utc_s = cyc.t_i - rg.r_l / net.c
+        return rg
+
+    def _calibrate(self, cyc: Cycle, t_em: float, idx: int, bias: float, reply: bool,
+                   var_i: float, var_l: float) -> None:
+        """Fold an accepted cycle's ranges into the calibration (``reply``: its
+        listener range too) and move the network to the new sound speed."""
+        cal = self.cal
+        if cal is None:
+            return
+        kf = self.kf
+        if self._cal_restart or not cal.initialised:
+            # the motion filter's state already holds this cycle: start from it
+            cal.start(kf.t, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.P)
+            self._cal_restart = False
+            return
+        cal.predict(t_em)
+        rg0 = cycle_ranges(cyc, self.net0)
+        cal.beacon_range(idx, rg0.r_i - bias, var_i)
+        if reply and idx != self.net0.listener:
+            cal.listener_range(idx, rg0.r_l - bias, var_l)
+        c = cal.sound_speed_mps
+        if abs(c - self.net.c) > SOUND_SPEED_STEP_MPS:
+            self._set_network(self.net0.with_sound_speed(c))
+
+    def _set_network(self, net: Network) -> None:
+        self.net = net
+        self.cycles.net = net
+        self.acq.net = net
+        self.asm.net = net
 
     def _track_cycle(self, cyc: Cycle, r_raw: float, t_em: float, cf: CircleFix,
                      entry: InitEntry, r_i: float, r_l: float, bias: float, var_i: float,
-                     var_l: float, out: Out) -> None:
+                     var_l: float, var0: tuple[float, float], out: Out) -> None:
         """A two-circle cycle while the filter runs: mirror choice, consistency
-        with the other beacons, filter update, manoeuvre detection, and the
-        re-acquisition test after a run of refusals."""
+        with the other beacons, filter update, manoeuvre detection, re-anchoring
+        after a run of refused consistent fixes, and the re-acquisition test
+        after a run of refusals.  ``var_i``, ``var_l``: the ranges' variances
+        at the measured noise scale (m²), ``var0`` as configured."""
         p = self.p
         kf = self.kf
         asm = self.asm
@@ -332,19 +412,37 @@ class AuvTracker:
             return
         lat = self.man.lateral(kf, fx - pr.px, fy - pr.py, pr.pxx, pr.pxy, pr.pyy, rows[0],
                                rows[1], var_i, var_l)
-        ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
+        ok, d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
         if lat is not None and self._maneuver(lat) and not ok:
-            ok, _d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
+            ok, d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
+        if not ok:
+            self._refused_run += 1
+            if self._refused_run >= p.reanchor_after and math.isfinite(d2):
+                # the other beacons confirm the fix: the filter is off, not the
+                # fix — open its covariance until the fix passes, and take it
+                s_row = 0.5 * (pr.pxx + pr.pyy) + 0.5 * e
+                kf.inflate(NoiseScale.reanchor_variance(d2, p.gate_chi2, s_row),
+                           p.turn_vel_sigma_mps ** 2)
+                ok, d2 = kf.update(rows, z, [var_i, var_l], p.gate_chi2, p.soft_gate_chi2)
+                if ok:
+                    self.dropped["reanchored"] += 1
         fix = AuvFix(cyc.t, t_em, cyc.beacon, ls[0], ls[1], mx, my, r_i, r_l, bias, ok,
                      False, ls[2], ls[3], ls[4])
         self.last_fix = fix
         out.append(fix)
+        self.plan.fix(fix)  # the AUV's progress along its plan, whatever the filter made of it
         self._last_range_only = False
         if ok:
             # only ranges the filter accepted take part in later fixes
             asm.remember(idx, t_em, r_i, var_i)
             asm.remember(self.net.listener, t_em, r_l, var_l)
+            if self.net.n >= 3:
+                chi2, dof = asm.last_chi2
+                self.noise.observe(chi2, dof)
+            else:
+                self._observe_noise(d2, 2)
             self._accepted(t_em, cyc.t, fx, fy, e, out)
+            self._calibrate(cyc, t_em, idx, bias, True, var0[0], var0[1])
             return
         self.dropped["innovation"] += 1
         if self.acq.refused(entry):
@@ -403,6 +501,7 @@ class AuvTracker:
         """One range to beacon ``idx`` (:meth:`.assembly.FixAssembly.range_only`),
         published as a range-only fix.  True when accepted; with ``fallback`` a
         refusal is neither counted nor published."""
+        self.asm.var_scale = self.noise.scale
         res = self.asm.range_only(self.kf, cyc, idx, r, fallback)
         if res.status in ("uninitialised", "depth"):
             if not fallback:
@@ -420,8 +519,22 @@ class AuvTracker:
             self.dropped["innovation"] += 1
             return False
         self._last_range_only = True
+        if self.net.n < 3:
+            self._observe_noise(res.d2, 1)
         self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out)
+        var0 = res.var / self.noise.scale
+        self._calibrate(cyc, res.t_em, idx, res.bias, False, var0, var0)
         return True
+
+    def _observe_noise(self, d2: float, rows: int) -> None:
+        """With two beacons (no joint fix to measure the noise by), an accepted
+        update's d² feeds the measured noise scale while the AUV flies straight
+        (:mod:`.gates`)."""
+        kf = self.kf
+        if self.man.maneuvering or (isinstance(kf, Imm) and kf.maneuver_probability
+                                    > STRAIGHT_NOISE_PROBABILITY):
+            return
+        self.noise.observe(d2, rows)
 
     # ------------------------------------------------------- initialisation
 
@@ -432,6 +545,7 @@ class AuvTracker:
         ``chosen`` (:meth:`.acquire.Acquisition.init_filter`)."""
         self.acq.init_filter(self.kf, recent, last, chosen, velocity)
         self.man.reset()
+        self._cal_restart = True
         if self._ever_init:
             self._reacquired_utc = last.t
         self._ever_init = True
@@ -448,6 +562,7 @@ class AuvTracker:
         rls = self.rls
         man = self.man
         self.fixes_accepted += 1
+        self._refused_run = 0
         self._last_update_utc = t_em
         drops = self.cycles.cycles_dropped
         self._drops_at_update = drops["missed_ping"] + drops["superseded"] + drops["sequence"]
@@ -483,6 +598,11 @@ class AuvTracker:
                 rls.reset(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], 0.5 * (P[0][0] + P[1][1]),
                           0.5 * (P[2][2] + P[3][3]), 0.5 * (P[0][2] + P[1][3]),
                           max(kf.pos_sigma(), floor))
+            elif man.arcing:
+                # an arc: the track says turning (the filter, whose turn rate
+                # follows it, leads), the line is left to its fit
+                man.turn_utc = t_em
+        self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma())
         track = self._build(t)
         self.last_track = track
         out.append(track)
@@ -522,17 +642,49 @@ class AuvTracker:
         h = (vy * x0 - vx * y0) / v if v > 0.0 else math.nan
         age = t - (self._last_update_utc + off)
         kx = kf.x
-        return AuvTrack(t, x0, y0, vx, vy, math.atan2(vy, vx), v, h, rls.covariance(),
-                        rls.t0 + off, rls.t0, age, self._flags(age), self._lost,
-                        kx[0], kx[1], kx[2], kx[3], kf.pos_sigma())
+        return self.plan.stamp(AuvTrack(
+            t, x0, y0, vx, vy, math.atan2(vy, vx), v, h, rls.covariance(), rls.t0 + off,
+            rls.t0, age, self._flags(age), self._lost, kx[0], kx[1], kx[2], kx[3],
+            kf.pos_sigma(), *self._sound_speed()))
+
+    def _sound_speed(self) -> tuple[float, float, bool]:
+        """(sound speed m/s, its 1σ m/s, converged) for the track."""
+        cal = self.cal
+        if cal is None:
+            return self.net.c, 0.0, False
+        return cal.sound_speed_mps, cal.sound_speed_sigma_mps, cal.converged
 
     def _track(self, t: float, last: AuvTrack) -> AuvTrack:
         """``last`` re-stamped at ``t`` with its age and flags brought up to date."""
         age = t - (self._last_update_utc + self.clock.rt_offset())
-        return AuvTrack(t, last.x0_m, last.y0_m, last.vx_mps, last.vy_mps, last.psi_auv_rad,
-                        last.v_auv_mps, last.h_auv_m, last.cov, last.t0, last.t0_utc_s, age,
-                        self._flags(age), self._lost, last.kf_x_m, last.kf_y_m,
-                        last.kf_vx_mps, last.kf_vy_mps, last.kf_pos_sigma_m)
+        return self.plan.stamp(AuvTrack(
+            t, last.x0_m, last.y0_m, last.vx_mps, last.vy_mps, last.psi_auv_rad,
+            last.v_auv_mps, last.h_auv_m, last.cov, last.t0, last.t0_utc_s, age,
+            self._flags(age), self._lost, last.kf_x_m, last.kf_y_m, last.kf_vx_mps,
+            last.kf_vy_mps, last.kf_pos_sigma_m, *self._sound_speed()))
+
+    def _predicted(self, t: float, last: AuvTrack) -> AuvTrack:
+        """The track brought forward to runtime ``t``: the filter's state
+        predicted along its turn rate (a coordinated turn: the course keeps
+        turning between fixes) and the line's origin moved to ``t``."""
+        off = self.clock.rt_offset()
+        t_utc = t - off
+        kf = self.kf
+        if t_utc <= kf.t:
+            return self._track(t, last)
+        w = kf.omega if isinstance(kf, Imm) else 0.0
+        x, y, vx, vy = turn_step(kf.x[0], kf.x[1], kf.x[2], kf.x[3], w, t_utc - kf.t)
+        _, _, pxx, _, pyy = kf.predicted(t_utc)
+        rls = self.rls
+        lx, ly = rls.position(t_utc)
+        lvx, lvy = rls.vx, rls.vy
+        v = math.hypot(lvx, lvy)
+        h = (lvy * lx - lvx * ly) / v if v > 0.0 else math.nan
+        age = t - (self._last_update_utc + off)
+        return self.plan.stamp(AuvTrack(
+            t, lx, ly, lvx, lvy, math.atan2(lvy, lvx), v, h, rls.covariance_at(t_utc), t,
+            t_utc, age, self._flags(age), self._lost, x, y, vx, vy,
+            math.sqrt(max(0.5 * (pxx + pyy), 0.0)), *self._sound_speed()))
 
     def _check_lost(self, t: float | None, out: Out) -> None:
         """Declare the track lost when silent too long or too uncertain."""
@@ -547,6 +699,7 @@ class AuvTracker:
         if age <= p.lost_after_s and 0.5 * (pxx + pyy) <= p.lost_sigma_m ** 2:
             return
         self._lost = True
+        self.plan.leave()  # matched again once the track is back
         kx = self.kf.x
         self.acq.prior = (kx[0], kx[1])
         self.kf.reset()

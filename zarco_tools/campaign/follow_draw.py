@@ -75,9 +75,9 @@ def plan_supported() -> bool:
 
 
 class FollowDrawer:
-    kind = "follow"
-    targets = TARGETS
-    checks = CHECKS
+    kind: ClassVar[str] = "follow"
+    targets: ClassVar[tuple[str, ...]] = TARGETS
+    checks: ClassVar[tuple[str, ...]] = CHECKS
     ranges: ClassVar[dict[str, tuple[float, float]]] = {
         "beacon_spread_m": (50.0, 5000.0), "beacon_depth_m": (0.0, 6000.0),
         "auv_speed_mps": (0.1, 3.0), "auv_depth_m": (0.0, 1000.0),
@@ -103,7 +103,7 @@ class FollowDrawer:
         "plan": ("none", "plan", "adaptive"),
     }
     settings: ClassVar[dict[str, tuple[Any, ...]]] = {"route": tuple(ROUTE_RANGES)}
-    figures = (
+    figures: ClassVar[tuple[str, ...]] = (
         "stop", "sim_seconds", "acquired_s", "distance_median_m", "distance_p95_m",
         "distance_max_m", "settled_distance_median_m", "settled_distance_p95_m", "turns",
         "lost_max_s", "hold_max_s", "fix_gap_max_s", "track_lost_events",

@@ -87,17 +87,17 @@ def _judge(checks: list[tuple[str, str, float | None, float]], report: dict[str,
 
 
 class LinesDrawer:
-    kind = "lines"
-    targets = ("xtrack_rms_m", "xtrack_p95_m")
-    checks = ("rms", "p95", "json")
+    kind: ClassVar[str] = "lines"
+    targets: ClassVar[tuple[str, ...]] = ("xtrack_rms_m", "xtrack_p95_m")
+    checks: ClassVar[tuple[str, ...]] = ("rms", "p95", "json")
     ranges: ClassVar[dict[str, tuple[float, float]]] = {
         **PLANT_RANGES, "speed_mps": (0.05, 3.0), "margin": (1.0, 10.0)}
     choices: ClassVar[dict[str, tuple[str, ...]]] = {}
     settings: ClassVar[dict[str, tuple[Any, ...]]] = {}
-    figures = ("stop", "sim_seconds", "xtrack_rms_m", "xtrack_p95_m", "xtrack_max_m",
-               "corner_overshoot_max_m", "corner_overshoot_outside_max_m",
-               "saturation_fraction", "command_step_rms", "nav_position_rms_m",
-               "nav_heading_rms_deg", "faults")
+    figures: ClassVar[tuple[str, ...]] = (
+        "stop", "sim_seconds", "xtrack_rms_m", "xtrack_p95_m", "xtrack_max_m",
+        "corner_overshoot_max_m", "corner_overshoot_outside_max_m", "saturation_fraction",
+        "command_step_rms", "nav_position_rms_m", "nav_heading_rms_deg", "faults")
 
     def required_ranges(self, spec: CampaignSpec, fam: Family) -> list[str]:
         return [*PLANT_RANGES, "speed_mps", "margin"]
@@ -135,15 +135,16 @@ class LinesDrawer:
 
 
 class HoldDrawer:
-    kind = "hold"
-    targets = ("hold_p95_m", "hold_max_m")
-    checks = ("p95", "max", "json")
+    kind: ClassVar[str] = "hold"
+    targets: ClassVar[tuple[str, ...]] = ("hold_p95_m", "hold_max_m")
+    checks: ClassVar[tuple[str, ...]] = ("p95", "max", "json")
     ranges: ClassVar[dict[str, tuple[float, float]]] = dict(PLANT_RANGES)
     choices: ClassVar[dict[str, tuple[str, ...]]] = {}
     settings: ClassVar[dict[str, tuple[Any, ...]]] = {}
-    figures = ("stop", "sim_seconds", "hold_distance_p50_m", "hold_distance_p95_m",
-               "hold_distance_max_m", "hold_seconds", "hold_thrust_mean_pct",
-               "hold_command_step_rms", "nav_position_rms_m", "nav_heading_rms_deg", "faults")
+    figures: ClassVar[tuple[str, ...]] = (
+        "stop", "sim_seconds", "hold_distance_p50_m", "hold_distance_p95_m",
+        "hold_distance_max_m", "hold_seconds", "hold_thrust_mean_pct", "hold_command_step_rms",
+        "nav_position_rms_m", "nav_heading_rms_deg", "faults")
 
     def required_ranges(self, spec: CampaignSpec, fam: Family) -> list[str]:
         return list(PLANT_RANGES)

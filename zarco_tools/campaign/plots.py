@@ -75,7 +75,7 @@ def factor_effects(records: list[dict[str, Any]], checks: list[str]
         app = [r for r in records if applies(check, r) and check not in r.get("exempt", {})]
         if not any(check in r.get("fails", {}) for r in app) or len(app) < 6:
             continue
-        rows = []
+        rows: list[dict[str, Any]] = []
         for f in facs:
             sel = [r for r in app if isinstance(r["factors"].get(f), (int, float))]
             if len(sel) < 6:
@@ -90,7 +90,7 @@ def factor_effects(records: list[dict[str, Any]], checks: list[str]
                          "miss_high": round(float(high.mean()), 3),
                          "difference": round(float(high.mean() - low.mean()), 3),
                          "low_below": round(float(lo), 3), "high_above": round(float(hi), 3)})
-        rows.sort(key=lambda r: -abs(r["difference"]))
+        rows.sort(key=lambda r: -abs(float(r["difference"])))
         out[check] = rows
     return out
 
@@ -118,8 +118,8 @@ def plot_campaign(out_dir: Path, records: list[dict[str, Any]], checks: list[str
 
     eff = factor_effects(records, checks)
     weight: dict[str, float] = {}
-    for rows in eff.values():
-        for e in rows:
+    for effs in eff.values():
+        for e in effs:
             weight[e["factor"]] = max(weight.get(e["factor"], 0.0), abs(e["difference"]))
     facs = sorted(numeric_factors(records), key=lambda f: -weight.get(f, 0.0))[:MAX_FACTORS]
     vals = [figure_values(r) for r in records]
@@ -156,16 +156,16 @@ def plot_campaign(out_dir: Path, records: list[dict[str, Any]], checks: list[str
         written.append(str(p))
     facs = numeric_factors(records)
     if eff and facs:
-        rows = list(eff)
-        m = np.full((len(rows), len(facs)), np.nan)
-        for i, check in enumerate(rows):
+        names = list(eff)
+        m = np.full((len(names), len(facs)), np.nan)
+        for i, check in enumerate(names):
             for e in eff[check]:
                 m[i, facs.index(e["factor"])] = e["difference"]
-        fig, ax = plt.subplots(figsize=(1.0 + 0.7 * len(facs), 1.2 + 0.5 * len(rows)))
+        fig, ax = plt.subplots(figsize=(1.0 + 0.7 * len(facs), 1.2 + 0.5 * len(names)))
         im = ax.imshow(m, cmap="RdBu_r", vmin=-1.0, vmax=1.0, aspect="auto")
         ax.set_xticks(range(len(facs)), facs, rotation=60, ha="right", fontsize=7)
-        ax.set_yticks(range(len(rows)), rows, fontsize=8)
-        for i in range(len(rows)):
+        ax.set_yticks(range(len(names)), names, fontsize=8)
+        for i in range(len(names)):
             for j in range(len(facs)):
                 if math.isfinite(m[i, j]):
                     ax.text(j, i, f"{m[i, j]:+.2f}", ha="center", va="center", fontsize=6)

@@ -78,9 +78,9 @@ class ResultsDir:
             old = json.loads(hp.read_text())
             diff = [k for k in SAME if old.get(k) != self.header.get(k)]
             if diff:
-                k = diff[0]
-                raise ConfigError(str(self.dir), k, f"holds another campaign ({k} "
-                                  f"{old.get(k)!r}, this run {self.header.get(k)!r}): "
+                key = diff[0]
+                raise ConfigError(str(self.dir), key, f"holds another campaign ({key} "
+                                  f"{old.get(key)!r}, this run {self.header.get(key)!r}): "
                                   "give another --out")
         tmp = hp.with_suffix(".tmp")
         tmp.write_text(json.dumps(self.header, indent=1) + "\n")

@@ -13,7 +13,7 @@ import multiprocessing
 import os
 import socket
 import time
-from collections.abc import Iterator
+from collections.abc import Generator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any
 
@@ -61,7 +61,7 @@ def noop(index: int) -> dict[str, Any]:
 
 
 def run_local(spec: CampaignSpec, seed: int, indices: list[int], sets: list[str],
-              jobs: int) -> Iterator[dict[str, Any]]:
+              jobs: int) -> Generator[dict[str, Any], None, None]:
     """The missions' records as they complete, on ``jobs`` local processes
     (fresh interpreters: spawned, not forked).  Closing the iterator early
     cancels what has not started."""
@@ -92,19 +92,19 @@ def run_local(spec: CampaignSpec, seed: int, indices: list[int], sets: list[str]
 
 
 def run_dask(spec: CampaignSpec, seed: int, indices: list[int], sets: list[str],
-             address: str) -> Iterator[dict[str, Any]]:
+             address: str) -> Generator[dict[str, Any], None, None]:
     """The missions' records as they complete, on the Dask distributed cluster
     whose scheduler is at ``address`` (``tcp://HOST:8786``).  The spec is sent
     to every worker once; a mission lost with its worker is run again."""
     from distributed import Client, as_completed
 
-    with Client(address, timeout="30s") as client:
+    with Client(address, timeout="30s") as client:  # type: ignore[no-untyped-call]
         spec_f = client.scatter(spec, broadcast=True)
         futs = [client.submit(run_mission, spec_f, seed, k, sets, pure=False, retries=2,
                               key=f"zarco-campaign-{spec.name}-{seed}-{k}-{os.getpid()}")
                 for k in indices]
         try:
-            for f in as_completed(futs):
+            for f in as_completed(futs):  # type: ignore[no-untyped-call]
                 yield f.result()
                 f.release()
         finally:

@@ -115,7 +115,7 @@ def summarise(records: list[dict[str, Any]], checks: tuple[str, ...], scenario_f
     spread = {k: d for k in SPREAD
               if (d := _dist([(r.get("figures") or {}).get(k) for r in recs])) is not None}
     spread["severity"] = _dist([r["severity"] for r in recs]) or {}
-    cpu = [r.get("cpu_s") for r in recs if r.get("cpu_s")]
+    cpu = [float(r["cpu_s"]) for r in recs if r.get("cpu_s")]
     return {"missions": len(recs), "checks": list(checks), "all": _group(recs, checks),
             "by_family": {f: _group([r for r in recs if r["family"] == f], checks)
                           for f in families},
@@ -134,7 +134,7 @@ def _fmt_cell(c: dict[str, int]) -> str:
 def _table(title: str, groups: dict[str, dict[str, Any]], checks: list[str]) -> list[str]:
     cols = [*checks, "every target"]
     w0 = max(12, *(len(k) for k in groups)) + 1
-    widths = [max(len(c), 9) + 1 for c in cols]
+    widths = [max(len(c), 11) + 1 for c in cols]
     out = [title, f"{'':<{w0}}{'n':>4}  " + "".join(f"{c:>{w}}" for c, w in
                                                      zip(cols, widths, strict=True))]
     for name, g in groups.items():

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
+
+from zarco_core.paths import PathError, writable_file
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -20,9 +23,12 @@ def cmd_info(args: argparse.Namespace) -> int:
 def cmd_plot(args: argparse.Namespace) -> int:
     from zarco_tools.log.plot import plot_recording
     from zarco_tools.log.reader import open_recording
+    from zarco_tools.plot import image_path
 
     out = args.out or str(Path(args.files[0]).with_suffix(".png"))
-    f = plot_recording(open_recording(args.files), out)
+    rec = open_recording(args.files)
+    image_path(out, "--out")
+    f = plot_recording(rec, out)
     print(f"plot: {out} ({f.kind}, {'truth' if f.truth else 'estimate'}, "
           f"{len(f.log.t)} samples)")
     return 0
@@ -35,13 +41,11 @@ def cmd_export(args: argparse.Namespace) -> int:
     rec = open_recording(args.files)
     fmt = "jsonl" if args.jsonl else "csv"
     if args.out:
-        with open(args.out, "w", newline="") as fh:
+        writable_file(args.out, "--out")
+        with open(args.out, "w", newline="", encoding="utf-8") as fh:
             n = export(rec, args.topic, fh, fmt)
     else:
-        try:
-            n = export(rec, args.topic, sys.stdout, fmt)
-        except BrokenPipeError:  # | head
-            return 0
+        n = export(rec, args.topic, sys.stdout, fmt)  # a closed pipe (| head): quiet
     if n == 0:
         print(f"zarco log export: no messages on {args.topic}", file=sys.stderr)
         return 1
@@ -52,11 +56,19 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from zarco_tools.log.reader import open_recording
     from zarco_tools.log.replay import replay, report
 
-    res = replay(open_recording(args.files), args.set, args.record)
+    rec = open_recording(args.files)
+    if args.record:
+        writable_file(args.record, "--record")
+    res = replay(rec, args.set, args.record)
     r = report(res)
+    failed = 0
+    if res.record_error:
+        print(f"zarco log replay: --record: {args.record}: recording failed: "
+              f"{res.record_error}", file=sys.stderr)
+        failed = 1
     if args.json:
         print(json.dumps(r))
-        return 0
+        return failed
     nav, fix, trk, cmd = r["nav"], r["auv_fix"], r["auv_track"], r["thruster_commands"]
     print(f"replayed {r['chunks']} raw chunks and {cmd['replayed']} thruster commands: "
           f"{r['sim_seconds']:.1f} s in {r['wall_seconds']:.2f} s = "
@@ -80,15 +92,20 @@ def cmd_replay(args: argparse.Namespace) -> int:
     notes += [f"parameter change refused here: {why}" for why in r["params_refused"]]
     for n in notes:
         print(f"  note: {n}")
-    if args.record:
-        print(f"record: {args.record}")
-    return 0
+    if args.record and os.path.isfile(args.record):
+        print(f"record: {args.record}" + (" (incomplete)" if failed else ""))
+    return failed
 
 
 def cmd_fix(args: argparse.Namespace) -> int:
-    from zarco_tools.log.reader import recover
+    from zarco_tools.log.reader import open_recording, recover
 
     out = args.out or str(Path(args.file).with_suffix(".fixed.mcap"))
+    open_recording(args.file)
+    writable_file(out, "--out")
+    if os.path.lexists(out):
+        raise PathError(out, "already exists (a recovered file is never written over one)",
+                        "--out")
     n, why = recover(args.file, out)
     print(f"{out}: {n} messages" + (f" (source ended: {why})" if why else
                                     " (source was finished)"))

@@ -17,7 +17,6 @@ import math
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, TypeVar
 
 import orjson
@@ -26,6 +25,8 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
+
+from zarco_core.paths import PathError, oserror_reason, readable_file
 
 T = TypeVar("T")
 
@@ -171,12 +172,27 @@ def iter_messages(rec: Recording, topics: set[str] | None = None) -> Iterator[Ms
         yield from _iter_file(p, rec, topics)
 
 
+#: the first bytes of every MCAP file
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def read_head(path: str) -> bytes:
+    """The first bytes of a file to read (PathError if it cannot be read)."""
+    try:
+        with readable_file(path).open("rb") as fh:
+            return fh.read(len(MCAP_MAGIC))
+    except OSError as exc:
+        raise PathError(path, oserror_reason(exc)) from None
+
+
 def open_recording(paths: list[str] | str) -> Recording:
     """A recording of one or more files (the parts of a run, in order)."""
     ps = [paths] if isinstance(paths, str) else list(paths)
     for p in ps:
-        if not Path(p).is_file():
-            raise FileNotFoundError(p)
+        head = read_head(p)
+        if head != MCAP_MAGIC:
+            raise PathError(p, "empty: not an MCAP recording" if not head else
+                            "not an MCAP recording (no MCAP magic at its start)")
     rec = Recording(ps)
     # the metadata sits at the start of each file: read up to the first message
     for p in ps:

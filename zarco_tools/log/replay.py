@@ -377,6 +377,8 @@ class ReplayResult:
     read_seconds: float = 0.0
     #: recorded parameter changes this replay's configuration refused (with --set)
     params_refused: list[str] = field(default_factory=list)
+    #: why recording the replay (``--record``) stopped, if it did
+    record_error: str | None = None
 
     @property
     def speed(self) -> float:
@@ -401,6 +403,7 @@ def replay(rec: Recording, overrides: list[str] | None = None,
     t_end = max(inp.t_last, start)
     late = [0]
     refused_params: list[str] = []
+    record_errors: list[str] = []
 
     async def main() -> float:
         loop = asyncio.get_running_loop()
@@ -410,6 +413,8 @@ def replay(rec: Recording, overrides: list[str] | None = None,
         for topic, kind in COMPARED.items():
             bus.listen(kind, replayed[topic].append)
         bus.listen(ThrusterCommand, commands.append)
+        bus.listen(Fault, lambda f: record_errors.append(f.reason)
+                   if f.source == "recorder" else None)
         runtime = ReplayRuntime(cfg, bus, clock, ports, boot)
 
         async def at(t: float) -> None:
@@ -467,7 +472,8 @@ def replay(rec: Recording, overrides: list[str] | None = None,
     return ReplayResult(cfg, inp.recorded, replayed, n_chunks, end - start, wall,
                         ports.written.get("thrusters", []), inp.thruster_tx,
                         dict(inp.counts), late[0], lost, inp.restamped, inp.restamp_max_s,
-                        inp.commands, commands, cut_t, read_s, refused_params)
+                        inp.commands, commands, cut_t, read_s, refused_params,
+                        record_errors[0] if record_errors else None)
 
 
 class _Done(Exception):

@@ -7,7 +7,8 @@ armed or not; ``arm``, ``disarm``, ``stop``, ``mode``, ``mission FILE``,
 ``follow``, ``resume``, ``param NAME VALUE`` send one command and print the
 boat's acknowledgement or its reason for refusing; ``thrust`` is manual
 teleoperation (renews the lease until stopped); ``rtcm SOURCE`` relays RTK
-corrections; ``web`` serves the live map to a browser.
+corrections; ``web`` serves the live map to a browser; ``foxglove`` serves
+every vessel to Foxglove.
 
 The boat boots disarmed: nothing moves until ``zarco shore arm`` is accepted
 (it needs a valid position and heading, the thruster controller answering and
@@ -422,6 +423,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="progress line every S seconds (stderr)")
     r.set_defaults(shore_func=cmd_rtcm)
 
+    from zarco_tools.shore.foxglove.cli import add_parser as add_foxglove
     from zarco_tools.shore.web.cli import add_parser as add_web
 
     add_web(ss, common)
+    add_foxglove(ss, common)

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from zarco_core.paths import PathError, oserror_reason, read_text
 from zarco_runtime.links.shore.settings import parse_endpoint
 from zarco_runtime.links.shore.zenoh_config import TELEMETRY, client_config
 
@@ -90,10 +91,12 @@ class ConsoleConfig:
 def _read_credentials_file(path: str) -> tuple[str, str]:
     p = Path(path).expanduser()
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_text(p)
         mode = p.stat().st_mode
+    except PathError as exc:
+        raise ShoreError(f"credentials file {path}: {exc.reason}") from None
     except OSError as exc:
-        raise ShoreError(f"credentials file {path}: {exc.strerror or exc}") from None
+        raise ShoreError(f"credentials file {path}: {oserror_reason(exc)}") from None
     if mode & (stat.S_IRWXG | stat.S_IRWXO):
         log.warning("credentials file %s is readable by others (chmod 600 it)", path)
     lines = [ln.strip() for ln in text.splitlines()
@@ -143,10 +146,9 @@ def load_console_config(path: str | None, connect: list[str], vessel: str = "",
     data: dict[str, Any] = {}
     if file:
         try:
-            with open(file, "rb") as fh:
-                data = tomllib.load(fh)
-        except OSError as exc:
-            raise ShoreError(f"{file}: {exc.strerror or exc}") from None
+            data = tomllib.loads(read_text(file))
+        except PathError as exc:
+            raise ShoreError(str(exc)) from None
         except tomllib.TOMLDecodeError as exc:
             raise ShoreError(f"{file}: TOML syntax error: {exc}") from None
     tables = data.pop("endpoints", [])

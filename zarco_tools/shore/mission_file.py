@@ -21,6 +21,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from zarco_core.paths import PathError, read_text
+
 
 class MissionFileError(ValueError):
     pass
@@ -56,9 +58,9 @@ def load_mission(path: str | Path) -> dict[str, Any]:
     ``speed_mps`` and ``name`` (when the file gives them)."""
     p = Path(path)
     try:
-        text = p.read_bytes()
-    except OSError as exc:
-        raise MissionFileError(f"{path}: {exc.strerror or exc}") from None
+        text = read_text(p)
+    except PathError as exc:
+        raise MissionFileError(str(exc)) from None
     out: dict[str, Any] = {"name": p.stem}
     if p.suffix.lower() in (".geojson", ".json"):
         try:
@@ -73,8 +75,8 @@ def load_mission(path: str | Path) -> dict[str, Any]:
             out["speed_mps"] = float(props["speed_mps"])
         return out
     try:
-        d = tomllib.loads(text.decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        d = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
         raise MissionFileError(f"{path}: not TOML: {exc}") from None
     if isinstance(d.get("mission"), dict):
         d = d["mission"]

@@ -95,7 +95,6 @@ class Commands:
     def _command(self, link: Link, m: Any, is_int: bool, src: int, cmd: int,
                  ack: Callable[[int], None],
                  supervise: Callable[[str, dict[str, Any]], None]) -> None:
-        c = self.core
         p1, p2 = float(m.param1), float(m.param2)
         if cmd == mav.MAV_CMD_COMPONENT_ARM_DISARM:
             if p1 == 1.0:
@@ -111,12 +110,7 @@ class Commands:
             else:
                 self._set_mode(link, src, m.get_srcComponent(), cmd, base, p2)
         elif cmd == mav.MAV_CMD_MISSION_START:
-            if self.transfer.cleared:
-                c.event("mission", f"MISSION_START from mavlink:{src} refused: the "
-                        "mission was cleared")
-                ack(mav.MAV_RESULT_DENIED)
-            else:
-                supervise("mode", {"mode": Mode.LINES.value})
+            supervise("mode", {"mode": Mode.LINES.value})
         elif cmd == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             supervise("mode", {"mode": Mode.RETURN.value})
         elif cmd == mav.MAV_CMD_NAV_LOITER_UNLIM:
@@ -165,22 +159,21 @@ class Commands:
                     f"{custom:g} unknown (custom modes: {table})")
             c.command_ack(link, src, comp, cmd, mav.MAV_RESULT_DENIED)
             return
-        if mode is Mode.LINES and self.transfer.cleared:
-            c.event("mission", f"mode lines from mavlink:{src} refused: the mission "
-                    "was cleared")
-            c.command_ack(link, src, comp, cmd, mav.MAV_RESULT_DENIED)
-            return
         c.spawn(self._supervised(link, src, comp, cmd, "mode", {"mode": mode.value}))
 
     async def _supervised(self, link: Link, src: int, comp: int, cmd: int, name: str,
                           args: dict[str, Any]) -> None:
         c = self.core
         try:
-            ack = await c.cmds.send(name, args, source=f"mavlink:{src}")
+            ack = await c.supervise(name, args, src)
         except Exception:  # ours, not the ground station's: answered, never a restart
             c.counters.handler_errors += 1
             log.exception("mavlink: %s from %d", name, src)
             c.command_ack(link, src, comp, cmd, mav.MAV_RESULT_FAILED)
+            return
+        if ack is None:  # arguments the boat does not take (said as a status text)
+            c.counters.commands_refused += 1
+            c.command_ack(link, src, comp, cmd, mav.MAV_RESULT_DENIED)
             return
         if ack.ok:
             c.counters.commands_accepted += 1
@@ -210,8 +203,7 @@ class Commands:
 
     async def _thrust(self, src: int, u1: float, u2: float) -> None:
         try:
-            await self.core.cmds.send("thrust", {"u1": round(u1, 3), "u2": round(u2, 3)},
-                                      source=f"mavlink:{src}")
+            await self.core.supervise("thrust", {"u1": round(u1, 3), "u2": round(u2, 3)}, src)
         except Exception:  # a joystick has no answer; ours is counted, never a restart
             self.core.counters.handler_errors += 1
             log.exception("mavlink: thrust from %d", src)

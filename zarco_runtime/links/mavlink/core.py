@@ -1,6 +1,7 @@
 """What every part of the MAVLink endpoint shares: the settings, the bus and
-clock, the connections, the counters, the command path to the supervisor, and
-the few helpers each part needs (is a message addressed to the boat, send a
+clock, the connections, the counters, the command path to the supervisor, the
+vessel as the supervisor's status says it (mode, armed, home: never a copy of
+its own), and the few helpers each part needs (is a message addressed to the boat, send a
 COMMAND_ACK or MISSION_ACK, say something as an event, run a coroutine as a
 task of the endpoint)."""
 
@@ -14,9 +15,10 @@ from typing import TYPE_CHECKING, Any
 
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
+from zarco_core.commands import CommandRefused, decode
 from zarco_core.component import ComponentContext
 from zarco_core.geodesy import LocalFrame
-from zarco_core.messages import Event, Mode, VesselStatus
+from zarco_core.messages import CommandAck, Event, Mode, VesselStatus
 from zarco_runtime.links.mavlink.link import Link
 from zarco_runtime.links.mavlink.protocol import mav
 from zarco_runtime.links.mavlink.settings import read_signing_key
@@ -70,13 +72,49 @@ class Core:
         self.counters = Counters()
         self._tasks: set[asyncio.Task[None]] = set()
         self.failure: BaseException | None = None
-        # the vehicle as the supervisor last told it
+        #: the vessel as the supervisor last told it (mode, armed, home, mission)
         self.status: VesselStatus | None = None
-        self.mode = Mode.IDLE
-        self.armed = False
-        self.home: tuple[float, float] | None = None
-        if cfg.supervisor.home:
-            self.home = (float(cfg.supervisor.home[0]), float(cfg.supervisor.home[1]))
+
+    # --------------------------------------------------------------- vessel
+
+    @property
+    def mode(self) -> Mode:
+        """The supervisor's mode (idle before its first status)."""
+        st = self.status
+        if st is None:
+            return Mode.IDLE
+        try:
+            return Mode(st.mode)
+        except ValueError:
+            return Mode.IDLE
+
+    @property
+    def armed(self) -> bool:
+        """Armed, as the supervisor says."""
+        return self.status is not None and self.status.armed
+
+    @property
+    def home(self) -> tuple[float, float] | None:
+        """Home (lat, lon degrees) as the supervisor has it; None while unknown."""
+        st = self.status
+        if st is None or st.home_lat_deg is None or st.home_lon_deg is None:
+            return None
+        return st.home_lat_deg, st.home_lon_deg
+
+    # ------------------------------------------------------------- commands
+
+    async def supervise(self, name: str, args: dict[str, Any], src: int) -> CommandAck | None:
+        """Command ``name`` with ``args`` (what a ground station's message maps to)
+        to the supervisor as ``mavlink:<src>``: its acknowledgement, or None when
+        the arguments are not a valid command (the field and the reason said as
+        an event, so the ground station reads them as a STATUSTEXT)."""
+        source = f"mavlink:{src}"
+        try:
+            typed = decode(name, args)
+        except CommandRefused as exc:
+            self.event("ack", f"{name} from {source}: refused: {exc}")
+            return None
+        return await self.cmds.send(name, typed, source=source)
 
     # ---------------------------------------------------------------- tasks
 

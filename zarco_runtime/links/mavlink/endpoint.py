@@ -33,6 +33,7 @@ MAVLink                         supervisor
 ==============================  =======================================================
 mission upload (MISSION_COUNT,  ``mission {"waypoints", "speed_mps", "start": false}``
 MISSION_ITEM_INT …)             (:mod:`.mission`); MISSION_ACK accepted or refused
+MISSION_CLEAR_ALL, 0 items      ``mission {"clear": true}`` (refused while it runs)
 MAV_CMD_MISSION_START           ``mode {"mode": "lines"}`` (starts the loaded mission)
 COMPONENT_ARM_DISARM            ``arm`` / ``disarm`` (disarmed is idle: zero thrust)
 DO_SET_MODE, SET_MODE           ``mode`` of the custom mode (:mod:`.protocol`)
@@ -43,10 +44,13 @@ GPS_RTCM_DATA                   RtcmCorrections(source="mavlink"), blocks reasse
 HEARTBEAT from a GCS            OperatorHeartbeat(link="mavlink") (``failsafe.link``)
 ==============================  =======================================================
 
+Arguments are built with the typed command schema (:mod:`zarco_core.commands`).
 COMMAND_ACK results: ACCEPTED; TEMPORARILY_REJECTED when the supervisor refuses
 (its reason follows as a STATUSTEXT); DENIED for arguments the boat does not
-take; UNSUPPORTED for commands it does not know; FAILED when the supervisor did
-not answer.  A MANUAL_CONTROL is passed on when it changes the thrust or every
+take (the schema's field and reason follow as a STATUSTEXT); UNSUPPORTED for
+commands it does not know; FAILED when the supervisor did not answer.  Mode,
+armed and home are the supervisor's (its VesselStatus), never copies of the
+endpoint's own.  A MANUAL_CONTROL is passed on when it changes the thrust or every
 0.2 s, so that the lease (``supervisor.manual_lease_s``) lasts while the GCS
 sends and ends when it stops.
 
@@ -60,7 +64,6 @@ the link alive).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import math
 from collections.abc import Callable
@@ -71,13 +74,11 @@ from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
 from zarco_core.messages import (
-    CommandAck,
     Event,
     GpsFix,
     GuidanceStatus,
-    Mode,
-    NavState,
     OperatorHeartbeat,
+    ParamChange,
     RtcmCorrections,
     VesselStatus,
 )
@@ -129,9 +130,8 @@ class MavlinkEndpoint:
         ctx.listen(Directive, self._on_directive)
         ctx.listen(GuidanceStatus, self.transfer.on_guidance)
         ctx.listen(VesselStatus, self._on_status)
-        ctx.listen(CommandAck, self._on_ack)
-        ctx.listen(NavState, self._on_nav)
         ctx.listen(AuvTrack, self.auv.on_track)
+        ctx.listen(ParamChange, self.params.on_change)
         t, cm, p = self.transfer, self.commands, self.params
         self._handlers: dict[str, Callable[[Link, Any], None]] = {
             "HEARTBEAT": self._on_heartbeat,
@@ -277,31 +277,15 @@ class MavlinkEndpoint:
 
     # ============================================================ bus → GCS
 
-    def _on_nav(self, n: NavState) -> None:
-        core = self.core
-        if core.home is None and n.pos_valid and math.isfinite(n.lat_deg) \
-                and math.isfinite(n.lon_deg):
-            core.home = (n.lat_deg, n.lon_deg)  # as the supervisor: the first valid position
-
     def _on_status(self, st: VesselStatus) -> None:
-        core = self.core
-        core.status = st
-        core.armed = st.armed
-        with contextlib.suppress(ValueError):
-            core.mode = Mode(st.mode)
+        self.core.status = st
+        self.transfer.on_status(st)
         self.telemetry.measure_load()
-
-    def _on_ack(self, a: CommandAck) -> None:
-        if a.ok and a.name == "arm":
-            self.core.armed = True
 
     def _on_directive(self, d: Directive) -> None:
         if d.seq == self.dir_seq:
             return
         self.dir_seq = d.seq
-        core = self.core
-        core.mode = d.mode
-        core.armed = d.armed  # the supervisor's flag (idle may be armed)
         self.transfer.on_directive(d)
 
     def _on_event(self, e: Event) -> None:

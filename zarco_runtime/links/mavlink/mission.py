@@ -158,3 +158,11 @@ def items_from_mission(m: Mission, frame: LocalFrame) -> tuple[list[Item], list[
             items.append(Item(len(items), mav.MAV_FRAME_MISSION, mav.MAV_CMD_DO_CHANGE_SPEED,
                               1.0, speed, -1.0))
     return items, seqs, tuple(pts)
+
+
+def items_from_points(points: tuple[tuple[float, float], ...]) -> tuple[list[Item], list[int]]:
+    """Waypoints alone (the supervisor's loaded mission, whose speeds it does not
+    tell) as NAV_WAYPOINT items; the items and the item index of each vertex."""
+    items = [Item(i, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mav.MAV_CMD_NAV_WAYPOINT,
+                  x=lat, y=lon) for i, (lat, lon) in enumerate(points)]
+    return items, list(range(len(items)))

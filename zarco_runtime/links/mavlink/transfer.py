@@ -6,7 +6,8 @@ item, re-requested after :data:`UPLOAD_RETRY_S`, given up after
 with ``start = false`` (:mod:`.mission`), and the MISSION_ACK carries its
 verdict.  One upload at a time; another ground station's is refused while one
 is in progress.  Download (MISSION_REQUEST_LIST, MISSION_REQUEST_INT): the
-mission as the boat has it.  Progress: MISSION_CURRENT at every change and
+supervisor's loaded mission (its status's waypoints; with the speed item of
+the upload that gave them, if one did).  Progress: MISSION_CURRENT at every change and
 MISSION_ITEM_REACHED as each waypoint is passed, from the supervisor's
 directives and the guidance's status."""
 
@@ -16,11 +17,17 @@ import logging
 from dataclasses import dataclass
 from typing import Any
 
-from zarco_core.messages import GuidanceStatus, Mode
+from zarco_core.messages import GuidanceStatus, Mode, VesselStatus
 from zarco_runtime.guidance.directive import Directive
 from zarco_runtime.links.mavlink.core import Core
 from zarco_runtime.links.mavlink.link import Link
-from zarco_runtime.links.mavlink.mission import MAX_ITEMS, Item, items_from_mission, parse_items
+from zarco_runtime.links.mavlink.mission import (
+    MAX_ITEMS,
+    Item,
+    items_from_mission,
+    items_from_points,
+    parse_items,
+)
 from zarco_runtime.links.mavlink.protocol import mav
 
 log = logging.getLogger("zarco.mavlink")
@@ -57,7 +64,11 @@ class MissionTransfer:
         self.mission_state = mav.MISSION_STATE_NO_MISSION
         self.cur = 0  # the waypoint (index into wps) the boat is heading for
         self.upload: Upload | None = None
-        self.cleared = False  # the GCS cleared the mission (MISSION_CLEAR_ALL, count 0)
+        #: the supervisor's mission these items are for (VesselStatus.mission_id)
+        self.mission_id = -1
+        #: the items of the last upload taken, and its waypoints: served while the
+        #: supervisor's loaded mission has these waypoints (they carry its speed)
+        self.uploaded: tuple[tuple[tuple[float, float], ...], list[Item], list[int]] | None = None
 
     # ---------------------------------------------------------------- upload
 
@@ -93,10 +104,9 @@ class MissionTransfer:
             c.event("mission", f"mission upload from mavlink:{src} refused: another "
                     f"upload (mavlink:{up.sysid}) is in progress")
             return
-        if count == 0:
+        if count == 0:  # an empty mission: the loaded one is cleared
             self.upload = None
-            self._clear()
-            c.mission_ack(link, src, comp, mav.MAV_MISSION_ACCEPTED)
+            c.spawn(self._clear(link, src, comp, mtype))
             return
         if count > MAX_ITEMS:
             c.mission_ack(link, src, comp, mav.MAV_MISSION_NO_SPACE)
@@ -154,13 +164,13 @@ class MissionTransfer:
             c.event("mission", f"mission upload from {source} refused: {parsed.reason}")
             c.mission_ack(up.link, up.sysid, up.compid, parsed.result)
         else:
-            ack = await c.cmds.send("mission", {
+            ack = await c.supervise("mission", {
                 "waypoints": [[lat, lon] for lat, lon in parsed.waypoints],
                 "speed_mps": parsed.speed_mps, "start": False,
-                "name": f"{len(parsed.waypoints)} waypoints from {source}"}, source=source)
-            if ack.ok:
+                "name": f"{len(parsed.waypoints)} waypoints from {source}"}, up.sysid)
+            if ack is not None and ack.ok:
                 c.counters.missions_uploaded += 1
-                self.cleared = False
+                self.uploaded = (tuple(parsed.waypoints), items, parsed.wp_seqs)
                 self.items = items
                 self.wp_seqs = parsed.wp_seqs
                 self.wps = tuple(parsed.waypoints)
@@ -171,26 +181,39 @@ class MissionTransfer:
             else:
                 c.counters.missions_refused += 1
                 c.mission_ack(up.link, up.sysid, up.compid,
-                              mav.MAV_MISSION_ERROR if ack.mode == "unknown"
+                              mav.MAV_MISSION_ERROR if ack is not None and ack.mode == "unknown"
                               else mav.MAV_MISSION_INVALID)
 
-    def _clear(self) -> None:
-        # the supervisor keeps the mission it had loaded (it has no command to drop
-        # it): starting it is refused here until a new one is uploaded
-        self.cleared = True
+    async def _clear(self, link: Link, src: int, comp: int, mtype: int) -> None:
+        """The supervisor's ``mission {"clear": true}``: its loaded mission is
+        forgotten (refused while it runs); MISSION_ACK ACCEPTED, or ERROR with the
+        supervisor's reason as a status text."""
+        c = self.core
+        try:
+            ack = await c.supervise("mission", {"clear": True}, src)
+        except Exception:  # ours, not the ground station's: answered, never a restart
+            c.counters.handler_errors += 1
+            log.exception("mavlink: mission clear from %d", src)
+            ack = None
+        if ack is None or not ack.ok:
+            c.mission_ack(link, src, comp, mav.MAV_MISSION_ERROR, mtype)
+            return
         self.items, self.wp_seqs, self.wps = [], [], ()
         self.cur = 0
         self.mission_state = mav.MISSION_STATE_NO_MISSION
+        c.mission_ack(link, src, comp, mav.MAV_MISSION_ACCEPTED, mtype)
         self.broadcast_current()
 
     def on_clear(self, link: Link, m: Any) -> None:
-        if not self.core.for_us(m):
+        c = self.core
+        if not c.for_us(m):
             return
+        src, comp = m.get_srcSystem(), m.get_srcComponent()
         mtype = int(getattr(m, "mission_type", 0))
         if mtype in (mav.MAV_MISSION_TYPE_MISSION, mav.MAV_MISSION_TYPE_ALL):
-            self._clear()
-        self.core.mission_ack(link, m.get_srcSystem(), m.get_srcComponent(),
-                              mav.MAV_MISSION_ACCEPTED, mtype)
+            c.spawn(self._clear(link, src, comp, mtype))
+        else:  # fences and rally points: the boat has none
+            c.mission_ack(link, src, comp, mav.MAV_MISSION_ACCEPTED, mtype)
 
     # -------------------------------------------------------------- download
 
@@ -234,17 +257,41 @@ class MissionTransfer:
 
     # -------------------------------------------------------------- progress
 
-    def current(self) -> Any:
-        """MISSION_CURRENT as it stands."""
+    def current(self, mode: Mode | None = None) -> Any:
+        """MISSION_CURRENT as it stands (in ``mode``; default the supervisor's)."""
         seq = 0
         if self.wp_seqs:
             seq = self.wp_seqs[min(self.cur, len(self.wp_seqs) - 1)]
+        mode = self.core.mode if mode is None else mode
         return mav.MAVLink_mission_current_message(
-            seq, len(self.items), self.mission_state, int(self.core.mode is Mode.LINES))
+            seq, len(self.items), self.mission_state, int(mode is Mode.LINES))
 
-    def broadcast_current(self) -> None:
+    def broadcast_current(self, mode: Mode | None = None) -> None:
         for ln in self.core.links:
-            ln.send(self.current())
+            ln.send(self.current(mode))
+
+    def on_status(self, st: VesselStatus) -> None:
+        """The supervisor's status: when its loaded mission changed (another
+        upload, the shore link's, a clear), the mission a ground station
+        downloads follows it."""
+        if st.mission_id == self.mission_id:
+            return
+        self.mission_id = st.mission_id
+        pts = tuple((float(a), float(b)) for a, b in st.mission_points)
+        if pts == self.wps:
+            return
+        up = self.uploaded
+        if up is not None and up[0] == pts:
+            self.items, self.wp_seqs = up[1], up[2]
+        else:
+            self.items, self.wp_seqs = items_from_points(pts)
+        self.wps = pts
+        self.cur = 0
+        running = st.mode == Mode.LINES.value and bool(pts)
+        self.mission_state = (mav.MISSION_STATE_NO_MISSION if not pts
+                              else mav.MISSION_STATE_ACTIVE if running
+                              else mav.MISSION_STATE_NOT_STARTED)
+        self.broadcast_current()
 
     def on_directive(self, d: Directive) -> None:
         """A new directive (not a repeat of the last) from the supervisor."""
@@ -256,7 +303,7 @@ class MissionTransfer:
             self.mission_state = mav.MISSION_STATE_ACTIVE
         elif self.mission_state == mav.MISSION_STATE_ACTIVE:
             self.mission_state = mav.MISSION_STATE_PAUSED
-        self.broadcast_current()
+        self.broadcast_current(d.mode)  # the status saying it comes a moment later
 
     def on_guidance(self, g: GuidanceStatus) -> None:
         # the last status of a mission (complete) comes after the supervisor has

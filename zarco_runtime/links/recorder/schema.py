@@ -300,6 +300,8 @@ SHORE_AUV_SCHEMA: dict[str, Any] = {
         "distance_m": {**_NUM, "description": "horizontal distance from the vessel (m)"},
         "pos_cov_m2": {"type": ["array", "null"], "items": _NUM,
                        "description": "position covariance [north², north·east, east²] (m²)"},
+        "sound_speed_mps": {**_NUM, "description": "the tracker's sound speed estimate (m/s)"},
+        "sound_speed_sigma_mps": {**_NUM, "description": "its standard deviation (m/s)"},
     },
 }
 

@@ -23,9 +23,11 @@ clockwise from true north in [0, 360); a value the boat does not know is
 ``auv`` (per track update)
     the AUV's estimated ``lat_deg``, ``lon_deg``, ``course_deg``,
     ``speed_mps``, ``status`` (acquiring, tracking, turning, stale, lost),
-    ``distance_m``, the horizontal distance from the vessel, and ``pos_cov_m2``
+    ``distance_m``, the horizontal distance from the vessel, ``pos_cov_m2``
     [north², north·east, east²] (m²), the covariance of that position (the
-    fitted line's at the message's time: its 1σ ellipse on a map).
+    fitted line's at the message's time: its 1σ ellipse on a map), and
+    ``sound_speed_mps``, ``sound_speed_sigma_mps``: the sound speed the
+    tracker computes the ranges with (its online estimate) and its 1σ.
 ``event`` (per event)
     ``kind`` (mode, failsafe, ack, fault, component, mission), ``text``,
     ``source``.
@@ -147,7 +149,9 @@ def auv(utc: float, track: AuvTrack, frame: LocalFrame, nav: NavState | None
             "course_deg": num(deg360(track.psi_auv_rad), 2),
             "speed_mps": num(track.v_auv_mps, 3),
             "status": auv_status(track.flags, track.lost), "distance_m": num(dist, 2),
-            "pos_cov_m2": line_position_cov(track.cov, dt)}
+            "pos_cov_m2": line_position_cov(track.cov, dt),
+            "sound_speed_mps": num(track.sound_speed_mps, 2),
+            "sound_speed_sigma_mps": num(track.sound_speed_sigma_mps, 2)}
 
 
 def event(utc: float, ev: Event) -> dict[str, Any]:

@@ -221,7 +221,7 @@ class ZarcoMap {
     for (let lon = Math.ceil(lonLeft / lstep) * lstep; lon <= lonRight; lon += lstep) {
       const [x] = this.px(...this.frame.toLocal(this.frame.lat0, lon));
       el(g, "line", {x1: x, y1: 0, x2: x, y2: h});
-      el(g, "text", {x: x + 3, y: 14}, fmtLon(lon, ldigits));
+      el(g, "text", {x: x + 3, y: 100}, fmtLon(lon, ldigits));
     }
     const [cn, ce] = this.metres(...this.hover);
     const [clat, clon] = this.frame.toGeo(cn, ce);
@@ -307,10 +307,6 @@ class ZarcoMap {
         const [bx, by] = this.px(v.boat.n, v.boat.e);
         el(g, "line", {x1: bx, y1: by, x2: x, y2: y, class: "link-line"});
       }
-      const m = el(g, "g", {transform: `translate(${x.toFixed(1)},${y.toFixed(1)}) rotate(${a.course || 0})`,
-        id: selected ? "auv" : undefined, "data-n": a.n.toFixed(3), "data-e": a.e.toFixed(3),
-        "data-t": a.t});
-      el(m, "path", {d: "M0 -9 L5 -2 L5 8 L-5 8 L-5 -2 Z", class: "auv-shape"});
     }
     if (v.boat) {
       const b = v.boat;
@@ -320,6 +316,13 @@ class ZarcoMap {
         "data-heading": (b.heading || 0).toFixed(1), "data-t": b.t});
       el(m, "path", {d: "M0 -13 L7 7 L0 3 L-7 7 Z", class: "boat-shape"});
       el(g, "text", {x: x + 12, y: y - 10, class: "vessel-label"}, v.name);
+    }
+    if (a) {  // the AUV above the boat: when the boat is right over it, both show
+      const [x, y] = this.px(a.n, a.e);
+      const m = el(g, "g", {transform: `translate(${x.toFixed(1)},${y.toFixed(1)}) rotate(${a.course || 0})`,
+        id: selected ? "auv" : undefined, "data-n": a.n.toFixed(3), "data-e": a.e.toFixed(3),
+        "data-t": a.t});
+      el(m, "path", {d: "M0 -7 L4 -2 L4 6 L-4 6 L-4 -2 Z", class: "auv-shape"});
     }
   }
 }

@@ -1,8 +1,15 @@
-"""Follow-law geometry (paper VI), as pure functions.
+"""The paper's follow law (paper VI, ``follow.law = "paper"``): its geometry.
 
-Inputs: the AUV's line (x0, y0, vx, vy) from the RLS — NED metres and m/s,
-(x0, y0) the AUV's position at the time origin t0 — and the ASV position
-(x, y) in the same frame.  Times ``t`` are seconds *since t0*.
+The ASV tracks the AUV's line with the line controller (the paper's N_act:
+k_ψ(ψ_AUV − arctan(k_y d + k_l∫d dt) − ψ) − k_r r) at the AUV's speed, its
+surge force adding k_s(s_AUV − s) + k_i∫(s_AUV − s) dt to the feedforward
+F_f(v_AUV) and the speed loop k_v(v_AUV − v) (the paper's X_act).
+
+Inputs: the AUV's line (x0, y0, vx, vy) — NED metres and m/s, (x0, y0) the
+AUV's position at the time origin t0 — and the ASV position (x, y) in the
+same frame.  Times ``t`` are seconds *since t0*.  The follow guidance gives
+the line through the AUV's position now (t = 0) along its course, or along
+its plan's leg when it is on its plan.
 
 ::
 
@@ -37,46 +44,6 @@ from dataclasses import dataclass
 V_MIN_MPS = 0.05
 
 
-def auv_course(vx: float, vy: float) -> float:
-    """ψ_AUV = atan2(vy, vx) (rad, clockwise from north, in (−π, π])."""
-    return math.atan2(vy, vx)
-
-
-def auv_speed(vx: float, vy: float) -> float:
-    """v_AUV = √(vx² + vy²) (m/s)."""
-    return math.hypot(vx, vy)
-
-
-def auv_offset(x0: float, y0: float, vx: float, vy: float) -> float:
-    """h_AUV = (vy x0 − vx y0)/v_AUV (m): the cross-track offset of the origin of
-    the frame from the AUV's line, positive when the origin is to starboard of it
-    (NaN when v_AUV = 0)."""
-    v = math.hypot(vx, vy)
-    return (vy * x0 - vx * y0) / v if v > 0.0 else math.nan
-
-
-def auv_along(x0: float, y0: float, vx: float, vy: float, t: float) -> float:
-    """s_AUV = (x0 vx + y0 vy)/v_AUV + v_AUV t (m): the AUV's coordinate along its
-    line ``t`` seconds after the time origin (NaN when v_AUV = 0)."""
-    v = math.hypot(vx, vy)
-    return (x0 * vx + y0 * vy) / v + v * t if v > 0.0 else math.nan
-
-
-def along_track(x: float, y: float, vx: float, vy: float) -> float:
-    """s = (x vx + y vy)/v_AUV (m): the ASV's coordinate along the AUV's line."""
-    v = math.hypot(vx, vy)
-    return (x * vx + y * vy) / v if v > 0.0 else math.nan
-
-
-def cross_track(x: float, y: float, x0: float, y0: float, vx: float, vy: float) -> float:
-    """d = (vx y − vy x)/v_AUV + h_AUV (m), > 0 with the ASV to starboard of the
-    AUV's track (module docstring)."""
-    v = math.hypot(vx, vy)
-    if v <= 0.0:
-        return math.nan
-    return (vx * y - vy * x) / v + (vy * x0 - vx * y0) / v
-
-
 @dataclass(slots=True)
 class FollowGeometry:
     """Everything the follow law needs at one instant (m, m/s, rad)."""
@@ -106,10 +73,3 @@ def follow_geometry(x0: float, y0: float, vx: float, vy: float, x: float, y: flo
     h = (vy * x0 - vx * y0) / v
     return FollowGeometry(math.atan2(vy, vx), v, h, (x0 * vx + y0 * vy) / v + v * t,
                           (x * vx + y * vy) / v, (vx * y - vy * x) / v + h)
-
-
-def drag_feedforward_n(v_mps: float, x_u: float, x_uu: float) -> float:
-    """F_f(v): the surge force (N) that holds a steady speed ``v_mps`` through the
-    water against the damping X = X_u u + X_|u|u |u| u (zarco_core/vessel.py; X_u, X_|u|u
-    negative, N s/m and N s²/m²): F_f = −X_u v − X_|u|u |v| v."""
-    return -x_u * v_mps - x_uu * abs(v_mps) * v_mps

@@ -1,0 +1,249 @@
+"""The AUV's a-priori plan: its geometry, matching the AUV to it, noticing when
+the AUV leaves it (an adaptive mission) and comes back, the corners the
+tracker's prediction reaches.  The AUV is the simulator's (its turns anticipate
+the corner by its turning radius), sampled as the tracker's filter would see
+it: every 1.5–2.5 s, with position noise."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from drivers.sim.auv import Auv, AuvParams
+from zarco_core.auv_messages import AuvFix
+from zarco_runtime.tracking.plan import (
+    MAX_POINTS,
+    Plan,
+    PlanError,
+    PlanMatcher,
+    PlanParams,
+    check_points,
+    geodetic_plan,
+)
+
+
+def lawnmower(rng: np.random.Generator) -> tuple[list[list[float]], float, float]:
+    """A tight lawnmower of the field's range: legs 40–80 m, 10–20 m apart,
+    4–6 long legs, any orientation; its AUV speed (0.5–1.4 m/s) and turn rate
+    (6–15 °/s)."""
+    length = rng.uniform(40.0, 80.0)
+    gap = rng.uniform(10.0, 20.0)
+    a = rng.uniform(0.0, math.tau)
+    side = rng.choice([-1.0, 1.0])
+    ux, uy = math.cos(a), math.sin(a)
+    nx, ny = -uy * side, ux * side
+    x0, y0 = rng.uniform(-100.0, 100.0, 2)
+    pts = []
+    for i in range(int(rng.integers(4, 7))):
+        along = (0.0, length) if i % 2 == 0 else (length, 0.0)
+        for s in along:
+            pts.append([x0 + s * ux + i * gap * nx, y0 + s * uy + i * gap * ny])
+    return pts, float(rng.uniform(0.5, 1.4)), float(rng.uniform(6.0, 15.0))
+
+
+def fly(matcher: PlanMatcher, auv: Auv, t_end: float, rng: np.random.Generator,
+        sigma: float = 1.0) -> list[tuple[float, int]]:
+    """Feed the matcher the AUV's state (position with ``sigma`` noise, velocity
+    with 0.05 m/s noise), that position as the fix, at 1.5–2.5 s intervals
+    until ``t_end``; the (t, leg) history."""
+    out = []
+    t = 0.0
+    while t < t_end:
+        a = auv.truth(t)
+        ex, ey = rng.normal(0.0, sigma, 2)
+        evx, evy = rng.normal(0.0, 0.05, 2)
+        fx, fy = a.x_m + ex, a.y_m + ey
+        fix = AuvFix(t, t, 1, fx, fy, fx, fy, 0.0, 0.0, 0.0, True, False, sigma ** 2, 0.0,
+                     sigma ** 2)
+        matcher.fix(fix)
+        matcher.update(t, fx, fy, a.vx_mps + evx, a.vy_mps + evy, sigma)
+        out.append((t, matcher.leg))
+        t += float(rng.uniform(1.5, 2.5))
+    return out
+
+
+def auv_on(points: list[list[float]], speed: float, rate: float) -> Auv:
+    return Auv(AuvParams(waypoints=points, speed_mps=speed, turn_rate_dps=rate,
+                         at_end="stop"))
+
+
+def duration(points: list[list[float]], speed: float) -> float:
+    return sum(math.dist(a, b) for a, b in itertools.pairwise(points)) / speed
+
+
+# ------------------------------------------------------------------ geometry
+
+
+def test_legs_corners_and_the_path_coordinate() -> None:
+    plan = Plan([(0.0, 0.0), (100.0, 0.0), (100.0, 20.0), (0.0, 20.0)])
+    assert [lg.length_m for lg in plan.legs] == pytest.approx([100.0, 20.0, 100.0])
+    assert [lg.s0_m for lg in plan.legs] == pytest.approx([0.0, 100.0, 120.0])
+    assert plan.length_m == pytest.approx(220.0)
+    # north then east: a turn to starboard (+90°); east then south-west... back north-side
+    assert math.degrees(plan.turn_rad(0)) == pytest.approx(90.0)
+    assert math.degrees(plan.turn_rad(1)) == pytest.approx(90.0)
+    assert plan.turn_rad(2) == 0.0  # after the last leg
+    x, y, course = plan.point_at(110.0)
+    assert (x, y) == pytest.approx((100.0, 10.0)) and course == pytest.approx(math.pi / 2)
+    # 2 m to starboard of the third leg (heading south: starboard is west)
+    x, y, _ = plan.point_at(170.0, 2.0)
+    assert (x, y) == pytest.approx((50.0, 18.0))
+    # beyond the ends the first and last legs go on
+    assert plan.point_at(-10.0)[:2] == pytest.approx((-10.0, 0.0))
+    assert plan.point_at(230.0)[:2] == pytest.approx((-10.0, 20.0))
+
+
+def test_nearest_looks_only_in_its_window() -> None:
+    """Two legs 20 m apart: a point between them belongs to the one the window
+    holds (the AUV's neighbourhood on the path), not the nearer overall."""
+    plan = Plan([(0.0, 0.0), (100.0, 0.0), (100.0, 20.0), (0.0, 20.0)])
+    s, c = plan.nearest(50.0, 12.0, 0.0, 100.0)  # the first leg only
+    assert s == pytest.approx(50.0) and c == pytest.approx(12.0)
+    s, c = plan.nearest(50.0, 12.0, 130.0, 220.0)  # the last leg only
+    assert s == pytest.approx(170.0) and c == pytest.approx(8.0)  # starboard of southward
+    s, _ = plan.nearest(50.0, 12.0, 0.0, 220.0)
+    assert s == pytest.approx(170.0)
+
+
+@pytest.mark.parametrize(("points", "why"), [
+    ([(0.0, 0.0)], "auv_plan: a plan needs at least 2 points (or none)"),
+    ([(0.0, 0.0), (0.5, 0.5)], "auv_plan[1]: less than 1 m from point 0"),
+    ([(0.0, 0.0), (math.nan, 1.0)], "auv_plan[1]: not finite"),
+    ([(0.0, 0.0), (60_000.0, 0.0)], "auv_plan[1]: 60 km from the origin (at most 50 km)"),
+    ([(float(i), 0.0) for i in range(MAX_POINTS + 1)],
+     f"auv_plan: has {MAX_POINTS + 1} points, at most {MAX_POINTS}"),
+])
+def test_points_that_are_not_a_plan_are_refused_with_the_point_and_reason(
+        points: list[tuple[float, float]], why: str) -> None:
+    err = check_points(points)
+    assert err is not None and err.named("auv_plan") == why
+    with pytest.raises(PlanError) as exc:
+        Plan(points)
+    assert exc.value.named("auv_plan") == why
+    assert check_points([(0.0, 0.0), (1.0, 0.0)]) is None
+
+
+def test_an_operators_plan_is_checked_point_by_point() -> None:
+    def to_ned(lat: float, lon: float) -> tuple[float, float]:
+        return (lat - 41.0) * 111_195.0, (lon + 8.0) * 83_900.0
+
+    assert geodetic_plan([], to_ned) == ()
+    pts = geodetic_plan([[41.0, -8.0], [41.001, -8.0]], to_ned)
+    assert pts[1][0] == pytest.approx(111.195)
+    for raw, why in [("nope", "auv_plan: must be a list of [lat_deg, lon_deg], got str"),
+                     ([[41.0, -8.0], [41.0]], "auv_plan[1]: must be [lat_deg, lon_deg]"),
+                     ([[41.0, -8.0], [True, -8.0]], "auv_plan[1]: must be [lat_deg, lon_deg]"),
+                     ([[41.0, -8.0], [95.0, -8.0]], "auv_plan[1]: not a latitude, longitude"),
+                     ([[41.0, -8.0], [41.0, -8.0]], "auv_plan[1]: less than 1 m from point 0"),
+                     ([[41.0, -8.0]] * (MAX_POINTS + 1), f"auv_plan: has {MAX_POINTS + 1}")]:
+        with pytest.raises(PlanError) as exc:
+            geodetic_plan(raw, to_ned)
+        assert exc.value.named("auv_plan").startswith(why), exc.value.named("auv_plan")
+
+
+# ------------------------------------------------------------------ matching
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_an_auv_on_its_plan_is_followed_leg_by_leg_and_never_lost(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    pts, v, rate = lawnmower(rng)
+    m = PlanMatcher(PlanParams())
+    m.set_plan([tuple(p) for p in pts])
+    hist = fly(m, auv_on(pts, v, rate), duration(pts, v) - 2.0, rng)
+    legs = [leg for _, leg in hist]
+    joined = next(t for t, leg in hist if leg >= 0)
+    assert joined <= PlanParams().join_after_s + 8.0
+    after = [leg for t, leg in hist if t >= joined]
+    assert min(after) == 0 and -1 not in after, legs
+    assert all(b - a in (0, 1) for a, b in itertools.pairwise(after)), after
+    assert after[-1] == len(pts) - 2
+    assert m.left == 0 and m.joined == 1
+    assert any("on its plan, leg 1" in e for e in m.events)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_an_early_turn_onto_a_leg_the_plan_has_not_is_noticed(seed: int) -> None:
+    """The AUV abandons the plan half-way along a survey line, turning 40–140°
+    onto a course of its own (an adaptive mission): off the plan within seconds
+    of being off its leg, and an event says why."""
+    rng = np.random.default_rng(100 + seed)
+    pts, v, rate = lawnmower(rng)
+    k = 2 * int(rng.integers(0, (len(pts) - 1) // 2))  # a survey line (even legs)
+    a, b = np.array(pts[k]), np.array(pts[k + 1])
+    mid = a + rng.uniform(0.4, 0.6) * (b - a)
+    course = math.atan2(*(b - a)[::-1]) + rng.choice([-1.0, 1.0]) * math.radians(
+        rng.uniform(40.0, 140.0))
+    away = mid + 150.0 * np.array([math.cos(course), math.sin(course)])
+    route = [*pts[: k + 1], mid.tolist(), away.tolist()]
+    auv = auv_on(route, v, rate)
+    m = PlanMatcher(PlanParams())
+    m.set_plan([tuple(p) for p in pts])
+    t_mid = duration(route[: k + 2], v)
+    hist = fly(m, auv, t_mid + 100.0 / v, rng)
+    assert any(leg >= 0 for t, leg in hist if t < t_mid), "never on the plan"
+    # the true distance from the leg passes the gate (widened by half the
+    # turning radius about a corner, where the AUV rounds it) at some time;
+    # allow the persistence and two samples after it
+    gate = PlanParams().cross_gate_m + 2.0 + 0.5 * PlanParams().turn_radius_m
+    t_off = next(t for t, _ in hist if t > t_mid and _dist_to(auv, t, a, b) > gate)
+    left_t = next(t for t, leg in hist if t > t_mid and leg == -1)
+    assert left_t <= t_off + PlanParams().leave_after_s + 5.0
+    assert m.left == 1
+    assert any(e.startswith("AUV left its plan (") for e in m.events), m.events
+
+
+def _dist_to(auv: Auv, t: float, a: np.ndarray, b: np.ndarray) -> float:
+    p = auv.truth(t)
+    u = (b - a) / np.linalg.norm(b - a)
+    d = np.array([p.x_m, p.y_m]) - a
+    return float(abs(-d[0] * u[1] + d[1] * u[0]))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_skipped_corner_is_noticed_and_a_later_leg_rejoined(seed: int) -> None:
+    """The AUV does not turn at a corner: it runs on 25–40 m past it, then
+    comes back onto the plan two legs later (an adaptive mission that cut a
+    lawnmower's crossing): off the plan, then back on it."""
+    rng = np.random.default_rng(200 + seed)
+    pts, v, rate = lawnmower(rng)
+    k = int(rng.integers(1, len(pts) - 4))
+    a, b = np.array(pts[k - 1]), np.array(pts[k])
+    u = (b - a) / np.linalg.norm(b - a)
+    past = b + rng.uniform(25.0, 40.0) * u
+    route = [*pts[: k + 1], past.tolist(), *pts[k + 2:]]
+    auv = auv_on(route, v, rate)
+    m = PlanMatcher(PlanParams())
+    m.set_plan([tuple(p) for p in pts])
+    hist = fly(m, auv, duration(route, v) - 2.0, rng)
+    t_corner = duration(route[: k + 1], v)
+    before = [leg for t, leg in hist if t < t_corner - 10.0]
+    assert before[-1] == k - 1
+    t_left = next(t for t, leg in hist if t > t_corner and leg == -1)
+    # past the corner's zone (12 m) at speed v, plus the persistence and two samples
+    assert t_left <= t_corner + (PlanParams().corner_zone_m + 5.0) / v + 9.0
+    # it went on past the end of the leg it was on, or off the crossing it skipped
+    assert any(e.startswith("AUV left its plan (") and (
+        f"past the end of leg {k}" in e or f"of leg {k + 1})" in e) for e in m.events), m.events
+    back = [leg for t, leg in hist if t > t_left and leg >= 0]
+    assert back and back[0] >= k + 1, hist
+    assert any(e.startswith("AUV back on its plan") for e in m.events)
+
+
+def test_a_hovering_auv_is_on_its_plan_only_at_its_start_and_a_cleared_plan_stops() -> None:
+    m = PlanMatcher(PlanParams())
+    m.set_plan([(0.0, 0.0), (100.0, 0.0)])
+    for i in range(20):  # hovering 30 m off the plan, pointing anywhere
+        m.update(2.0 * i, 30.0, 20.0, 0.01, -0.01, 1.0)
+    assert m.leg == -1 and m.state == "search"
+    for i in range(20, 30):  # hovering at its first point: about to fly leg 1
+        m.update(2.0 * i, 0.5, -0.5, 0.01, -0.01, 1.0)
+    assert m.leg == 0 and m.state == "on"
+    m.set_plan(())
+    assert m.state == "none" and m.leg == -1
+    m.update(80.0, 30.0, 0.0, 1.0, 0.0, 1.0)
+    assert m.leg == -1
+    assert m.events[-1] == "AUV plan cleared; tracking without it"

@@ -1,0 +1,344 @@
+"""The AUV's a-priori plan in the tracker: which leg the AUV is on, its
+progress along the plan, and whether it still flies it (paper V: the AUV
+describes a sequence of straight lines "according to an a priori mission
+plan, or defined on-the-fly in adaptive sampling missions").
+
+The geometry (legs, corners, the plan rounded with the AUV's turning radius)
+is :mod:`.plan_geometry`; the progress along the plan (a filter of the path
+coordinate and speed, fed with the fixes) is :mod:`.plan_progress`.
+
+:class:`PlanMatcher` is fed by the tracker with every two-circle fix
+(:meth:`PlanMatcher.fix`: the progress) and with its filtered state after
+every accepted update (:meth:`PlanMatcher.update`: the matching):
+
+* ``none``: no plan;
+* ``search``: a plan, the AUV not on it.  A leg fits when the position is
+  within ``cross_gate_m`` + 2σ of it and between its ends, and the AUV's
+  course (moving faster than ``min_speed_mps``) is within ``course_gate_deg``
+  of the leg's; an AUV hovering at the plan's first point fits its first leg.
+  One leg fitting for ``join_after_s`` puts the AUV on it (event ``AUV on
+  its plan``) and starts its progress there;
+* ``on`` leg k: the leg follows the progress along the plan (never back), or
+  the filter's state fitting the next leg near the corner.  The AUV must fit
+  its leg: within ``cross_gate_m`` + 2σ of it (plus half its turning radius
+  about a corner, which it rounds), on its course outside the zones of
+  ``corner_zone_m`` (or 1.2 turning radii) about its corners (where it
+  turns), not past the corner's zone without turning.  Misfitting for
+  ``leave_after_s`` — off its leg, on another course (an early turn, a leg
+  the plan does not have), a late turn, a skipped corner — it has left the
+  plan: event ``AUV left its plan`` with the reason, and the matcher searches
+  again; re-joining any leg later puts it back on (``AUV back on its plan``).
+
+The tracker's :class:`~zarco_core.auv_messages.AuvTrack` carries the leg,
+the progress and the offset from the plan (:meth:`PlanMatcher.track_fields`);
+the follow guidance follows the AUV along its plan from there, round its
+corners as the AUV turns them.
+
+Pure and deterministic: no I/O, no clocks; times are any one clock (s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from zarco_core.auv_messages import AuvFix, AuvTrack
+from zarco_core.config import spec
+from zarco_runtime.tracking.plan_geometry import (
+    MAX_POINTS,
+    Plan,
+    PlanError,
+    PlanLeg,
+    check_points,
+    geodetic_plan,
+)
+from zarco_runtime.tracking.plan_progress import AlongPlan
+
+__all__ = ["MAX_POINTS", "AlongPlan", "Plan", "PlanError", "PlanLeg", "PlanMatcher",
+           "PlanParams", "check_points", "geodetic_plan"]
+
+@dataclass(slots=True)
+class PlanParams:
+    """``[tracker.plan]``: matching the AUV to its a-priori plan."""
+
+    cross_gate_m: float = spec(5.0, "m", "the AUV is on a leg while the filter's position is "
+                               "within this (plus 2σ) of it", min=0.5, max=1000.0)
+    course_gate_deg: float = spec(30.0, "deg", "… and its course within this of the leg's "
+                                  "(outside the corner zones)", min=1.0, max=90.0)
+    corner_zone_m: float = spec(12.0, "m", "within this of a corner the AUV may be on any "
+                                "course (it turns there): about its turning radius plus "
+                                "the track's error", min=0.0, max=1000.0)
+    min_speed_mps: float = spec(0.2, "m/s", "below this speed the AUV's course is not "
+                                "judged (hovering)", min=0.0, max=5.0)
+    join_after_s: float = spec(6.0, "s", "a leg must fit this long before the AUV is taken "
+                               "to be on it", min=0.0, max=600.0)
+    leave_after_s: float = spec(4.0, "s", "the AUV must misfit its leg this long before it "
+                                "is taken to have left the plan", min=0.0, max=600.0)
+    along_accel_psd: float = spec(0.01, "m²/s³", "the AUV's progress along its plan: white "
+                                  "acceleration density of its speed along the path",
+                                  min=1e-6, max=10.0)
+    along_floor_m: float = spec(1.0, "m", "1σ added to every fix's position along the plan "
+                                "(the AUV rounds the plan's corners)", min=0.0, max=100.0)
+    along_window_m: float = spec(15.0, "m", "a fix is placed on the plan within this of the "
+                                 "predicted path coordinate", min=1.0, max=1000.0)
+    turn_radius_m: float = spec(6.0, "m", "the AUV's turning radius until its first corners "
+                                "show it (the plan's corners are rounded with it)",
+                                min=0.0, max=18.0)
+
+
+@dataclass(slots=True)
+class _Fit:
+    """How the AUV's state fits one leg."""
+
+    along: float
+    cross: float
+    pos_ok: bool
+    course_ok: bool
+
+
+@dataclass(slots=True)
+class PlanMatcher:
+    """Which leg of its plan the AUV is on, and when it leaves it (module
+    docstring).  :attr:`events` collects what an operator should read
+    (drained by whoever publishes them)."""
+
+    params: PlanParams
+    plan: Plan | None = None
+    #: the leg the AUV is on, −1 when off the plan (or without one)
+    leg: int = -1
+    events: list[str] = field(default_factory=list)
+    #: how many times the AUV left the plan, and joined it
+    left: int = 0
+    joined: int = 0
+    _cand: int = -1
+    _cand_since: float = math.nan
+    _bad_since: float = math.nan
+    _bad_reason: str = ""
+    _last_t: float = -math.inf
+    #: the AUV's progress along the plan while it is on it
+    along: AlongPlan | None = None
+
+    @property
+    def state(self) -> str:
+        """``none`` (no plan), ``search`` or ``on``."""
+        if self.plan is None:
+            return "none"
+        return "on" if self.leg >= 0 else "search"
+
+    def set_plan(self, points: tuple[tuple[float, float], ...] | list[tuple[float, float]],
+                 source: str = "") -> None:
+        """Take a new plan (NED points, m; empty clears it) and match from scratch.
+        Points that are not a plan clear it, with an event saying why."""
+        had = self.plan is not None
+        self.plan = None
+        self.leg = -1
+        self.along = None
+        self._reset_search()
+        self._bad_since = math.nan
+        if not points:
+            if had:
+                self.events.append("AUV plan cleared; tracking without it")
+            return
+        try:
+            self.plan = Plan(list(points))
+        except ValueError as exc:
+            self.events.append(f"AUV plan refused ({exc}); tracking without it")
+            return
+        n = len(self.plan.legs)
+        self.events.append(f"AUV plan of {n} leg{'s' if n != 1 else ''} "
+                           f"({self.plan.length_m:.0f} m)" + (f" from {source}" if source else "")
+                           + "; waiting for the AUV on it")
+
+    def _reset_search(self) -> None:
+        self._cand = -1
+        self._cand_since = math.nan
+
+    # ------------------------------------------------------------ matching
+
+    def _fit(self, leg: PlanLeg, x: float, y: float, vx: float, vy: float,
+             sigma: float) -> _Fit:
+        p = self.params
+        along, cross = leg.project(x, y)
+        gate = p.cross_gate_m + 2.0 * sigma
+        pos_ok = abs(cross) <= gate and -gate <= along <= leg.length_m + gate
+        v = math.hypot(vx, vy)
+        course_ok = v < p.min_speed_mps or abs(math.remainder(
+            math.atan2(vy, vx) - leg.course_rad, math.tau)) <= math.radians(p.course_gate_deg)
+        return _Fit(along, cross, pos_ok, course_ok)
+
+    def update(self, t: float, x: float, y: float, vx: float, vy: float,
+               sigma: float = 0.0) -> None:
+        """Match the AUV's filtered state at time ``t`` (s): position (m),
+        velocity (m/s), position σ (m)."""
+        plan = self.plan
+        if plan is None or not all(math.isfinite(v) for v in (t, x, y, vx, vy)):
+            return
+        if not math.isfinite(sigma):
+            sigma = 0.0
+        self._last_t = t
+        if self.leg < 0:
+            self._search(t, x, y, vx, vy, sigma)
+            if self.leg >= 0:
+                self._start_along(t, x, y, vx, vy, sigma)
+        else:
+            self._progress(t)
+            self._follow_on(t, x, y, vx, vy, sigma)
+        if self.leg < 0:
+            self.along = None
+
+    def fix(self, fix: AuvFix) -> None:
+        """A position fix (its emission time ``emission_utc_s`` on this matcher's
+        clock), accepted by the tracker's filter or not: it moves the AUV's
+        progress along the plan (which has its own gate)."""
+        al, p = self.along, self.params
+        if al is None or self.leg < 0 or not fix.emission_utc_s >= al.t:
+            return
+        al.predict(fix.emission_utc_s, p.along_accel_psd)
+        al.fix(fix, p.along_window_m, p.along_floor_m)
+        self._advance()
+
+    def stamp(self, track: AuvTrack) -> AuvTrack:
+        """``track`` (before it is published) with what it says of the plan at
+        its time origin ``t0_utc_s``: the leg, the path coordinate (m), the speed
+        along the path (m/s), the offset from the plan (m), the AUV's turning
+        radius (m); −1 and NaN off the plan."""
+        al = self.along
+        if self.leg < 0 or al is None or self.plan is None:
+            return track
+        dt = track.t0_utc_s - al.t
+        track.plan_leg = self.leg
+        track.plan_s_m = self.plan.advance(al.s, al.u * dt, al.radius) if dt else al.s
+        track.plan_speed_mps = al.u
+        track.plan_cross_m = al.cross + al.cross_rate * dt
+        track.plan_turn_radius_m = al.radius
+        return track
+
+    def leave(self) -> None:
+        """The track is lost: match again once it is back (no event: the loss
+        has its own)."""
+        self.leg = -1
+        self.along = None
+        self._reset_search()
+
+    # ------------------------------------------------------------ progress
+
+    def _start_along(self, t: float, x: float, y: float, vx: float, vy: float,
+                     sigma: float) -> None:
+        assert self.plan is not None
+        leg = self.plan.legs[self.leg]
+        along, cross = leg.project(x, y)
+        u = vx * leg.ux + vy * leg.uy
+        self.along = AlongPlan.start(self.plan, t, leg.s0_m + along, u,
+                                     sigma * sigma + self.params.along_floor_m ** 2, cross,
+                                     self.params.turn_radius_m)
+
+    def _progress(self, t: float) -> None:
+        """Predict the progress to ``t``."""
+        al = self.along
+        if al is not None:
+            al.predict(t, self.params.along_accel_psd)
+            self._advance()
+
+    def _advance(self) -> None:
+        """On to the leg the progress is on (never back)."""
+        al, plan = self.along, self.plan
+        if al is None or plan is None:
+            return
+        k = plan.leg_at(al.s).index
+        if k > self.leg:
+            self.leg = k
+            self._bad_since = math.nan
+
+    def _search(self, t: float, x: float, y: float, vx: float, vy: float,
+                sigma: float) -> None:
+        plan = self.plan
+        assert plan is not None
+        best = -1
+        if math.hypot(vx, vy) < self.params.min_speed_mps:
+            # hovering: its course says nothing yet, but an AUV waiting at its
+            # plan's first point is about to fly its first leg
+            first = plan.legs[0]
+            if math.hypot(x - first.n0, y - first.e0) <= self.params.cross_gate_m + 2.0 * sigma:
+                best = 0
+        else:
+            best = self._best_leg(x, y, vx, vy, sigma)
+        if best < 0:
+            self._reset_search()
+            return
+        if best != self._cand:
+            self._cand, self._cand_since = best, t
+        if t - self._cand_since < self.params.join_after_s:
+            return
+        self.leg = best
+        self._reset_search()
+        self._bad_since = math.nan
+        self.joined += 1
+        n = len(plan.legs)
+        self.events.append(("AUV back on its plan" if self.left else "AUV on its plan")
+                           + f", leg {best + 1} of {n}")
+
+    def _best_leg(self, x: float, y: float, vx: float, vy: float, sigma: float) -> int:
+        """The leg the moving AUV fits best (nearest), or −1."""
+        assert self.plan is not None
+        best, best_c = -1, math.inf
+        for leg in self.plan.legs:
+            f = self._fit(leg, x, y, vx, vy, sigma)
+            if f.pos_ok and f.course_ok and 0.0 <= f.along <= leg.length_m \
+                    and abs(f.cross) < best_c:
+                best, best_c = leg.index, abs(f.cross)
+        return best
+
+    def _follow_on(self, t: float, x: float, y: float, vx: float, vy: float,
+                   sigma: float) -> None:
+        plan = self.plan
+        assert plan is not None
+        p = self.params
+        legs = plan.legs
+        # the AUV rounds the corners: about them it is off the legs by up to
+        # about half its turning radius, on any course, over its tangent length
+        radius = self.along.radius if self.along is not None else 0.0
+        zone = max(p.corner_zone_m, 1.2 * radius)
+        # on to the next leg(s) once near the corner and fitting them
+        while self.leg + 1 < len(legs):
+            k = self.leg
+            cur = self._fit(legs[k], x, y, vx, vy, sigma)
+            if cur.along < legs[k].length_m - zone:
+                break
+            nxt = self._fit(legs[k + 1], x, y, vx, vy, sigma)
+            if nxt.pos_ok and nxt.course_ok:
+                self.leg = k + 1
+                continue
+            # past a leg shorter than the zone (a lawnmower's crossing): the one after
+            if k + 2 < len(legs) and legs[k + 1].length_m <= 2.0 * zone:
+                nn = self._fit(legs[k + 2], x, y, vx, vy, sigma)
+                if nn.pos_ok and nn.course_ok:
+                    self.leg = k + 2
+                    continue
+            break
+        k = self.leg
+        leg = legs[k]
+        f = self._fit(leg, x, y, vx, vy, sigma)
+        near_end = k + 1 < len(legs) and f.along >= leg.length_m - zone
+        near_start = k > 0 and f.along <= zone
+        gate = p.cross_gate_m + 2.0 * sigma + (0.5 * radius if near_end or near_start else 0.0)
+        reason = ""
+        if abs(f.cross) > gate:
+            reason = f"{abs(f.cross):.0f} m {'starboard' if f.cross > 0 else 'port'} of leg {k + 1}"
+        elif k + 1 < len(legs) and f.along > leg.length_m + zone:
+            reason = f"past the end of leg {k + 1} without turning"
+        elif not f.course_ok and not (near_end or near_start):
+            course = math.degrees(math.atan2(vy, vx)) % 360.0
+            reason = (f"course {course:.0f}° where leg {k + 1} runs "
+                      f"{math.degrees(leg.course_rad) % 360.0:.0f}°")
+        if not reason:
+            self._bad_since = math.nan
+            return
+        if not math.isfinite(self._bad_since):
+            self._bad_since, self._bad_reason = t, reason
+        if t - self._bad_since < p.leave_after_s:
+            return
+        self.leg = -1
+        self.left += 1
+        self._bad_since = math.nan
+        self._reset_search()
+        self.events.append(f"AUV left its plan ({reason}); tracking without it")
