@@ -15,7 +15,7 @@ import pymap3d
 import zenoh
 from shore_support import ROOT, Boat, boats, connect_when_up, free_port, write_users
 
-from zarco_core.auv_messages import BuoyStatus
+from zarco_core.auv_messages import AuvPlan, BuoyStatus
 from zarco_core.config import build
 from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import MissionProgress, Mode, VesselStatus
@@ -72,6 +72,15 @@ def test_map_holds_origin_home_fence_beacons_and_the_mission_lines() -> None:
     assert m2["mission"]["active"] is False and m2["mission"]["waypoints"] == m[
         "mission"]["waypoints"]
     assert m2["home"] is None and m2["buoy"] is None
+    # the AUV's plan, while there is one
+    assert m["auv_plan"] == [] and m2["auv_plan"] == []
+    plan_ned = [(-40.0, 310.0), (260.0, 310.0), (260.0, -90.0)]
+    m3 = info.build(3.0, None, None, None, AuvPlan(3.0, tuple(plan_ned), "shore:alice"))
+    assert len(m3["auv_plan"]) == 3
+    for (lat, lon), (n, e) in zip(m3["auv_plan"], plan_ned, strict=True):
+        n2, e2, _ = pymap3d.geodetic2ned(lat, lon, 0.0, *origin, 0.0)
+        assert abs(n2 - n) < 0.01 and abs(e2 - e) < 0.01
+    assert info.build(4.0, None, None, None, AuvPlan(4.0))["auv_plan"] == []  # cleared
 
 
 def test_map_without_the_buoy_feed_has_no_beacons() -> None:

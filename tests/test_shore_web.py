@@ -189,6 +189,26 @@ def test_the_map_frame_is_the_boats_own(rig: Rig) -> None:
             assert abs(n2 - n) < 5.0 and abs(e2 - e) < 5.0  # (the surface is not the plane)
 
 
+def test_the_auv_plan_is_drawn(rig: Rig) -> None:
+    """The AUV's a-priori plan given with ``follow`` reaches the map (the ``map`` key)."""
+    page = rig.op
+    origin = rig.observer.snapshot()["alpha"].map["origin"]
+    # the scenario's AUV legs (north, east metres), as an operator would give them
+    ned = [(100.0, 100.0), (300.0, 100.0), (300.0, 300.0)]
+    plan = [list(pymap3d.ned2geodetic(n, e, 0.0, origin["lat_deg"], origin["lon_deg"],
+                                      0.0)[:2]) for n, e in ned]
+    _following(rig)
+    r = rig.observer.command("alpha", "follow", {"auv_plan": [[float(a), float(b)]
+                                                              for a, b in plan]})
+    assert len(r) == 1 and r[0].ok, r
+    page.wait_for_selector("#auv-plan", state="attached", timeout=30_000)
+    pts = (page.get_attribute("#auv-plan", "points") or "").split()
+    assert len(pts) == 3
+    got = rig.observer.snapshot()["alpha"].map["auv_plan"]
+    assert all(abs(g[0] - p[0]) < 1e-7 and abs(g[1] - p[1]) < 1e-7
+               for g, p in zip(got, plan, strict=True))
+
+
 def test_distance_shown_is_the_auv_keys(rig: Rig) -> None:
     page = rig.op
     seen: set[float] = set()
@@ -198,7 +218,10 @@ def test_distance_shown_is_the_auv_keys(rig: Rig) -> None:
             return [a ? a.t : null, document.getElementById("distance").textContent]; }""")
         ref = rig.observer.snapshot()["alpha"].auv
         if t is not None and ref.get("t") == t and ref.get("distance_m") is not None:
-            assert text == f"{ref['distance_m']:.1f}", (text, ref)
+            # shown to 0.1 m: the key's value to the display's half unit (a tie such as
+            # 0.25 rounds up in the page, to even in Python)
+            assert abs(float(text) - ref["distance_m"]) <= 0.05 + 1e-9, (text, ref)
+            assert len(text.split(".")[1]) == 1
             seen.add(t)
         time.sleep(0.1)
     assert len(seen) >= 4, f"only {len(seen)} AUV updates compared"

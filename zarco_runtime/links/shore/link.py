@@ -53,7 +53,7 @@ from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 from drivers.nmea_device import RateLimitedLog
-from zarco_core.auv_messages import AuvTrack, BuoyStatus
+from zarco_core.auv_messages import AuvPlan, AuvTrack, BuoyStatus
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
@@ -118,6 +118,7 @@ class ShoreLink:
         self.directive = bus.latest(Directive)
         self.status = bus.latest(VesselStatus)
         self.buoy = bus.latest(BuoyStatus)
+        self.plan = bus.latest(AuvPlan)
         self.map = MapInfo(cfg, self.frame)
         #: the last ``map`` object sent (JSON; read by zenoh's threads to answer queries)
         self._map_json = ""
@@ -181,7 +182,8 @@ class ShoreLink:
 
     def _map_update(self, now: float) -> None:
         """Send the ``map`` object if it changed, or every :data:`MAP_PERIOD_S`."""
-        obj = self.map.build(0.0, self.status.value, self.directive.value, self.buoy.value)
+        obj = self.map.build(0.0, self.status.value, self.directive.value, self.buoy.value,
+                             self.plan.value)
         key = json.dumps(obj, separators=(",", ":"))
         if key == self._map_key and now - self._map_sent_t < MAP_PERIOD_S:
             return

@@ -26,13 +26,16 @@ geodetic (WGS-84, degrees); a value the boat does not know is ``null``.
     the mission in force (or the last lines mission, with ``active`` false):
     ``{kind, name, active, waypoints: [[lat_deg, lon_deg], ...]}`` (the lines'
     ends, in order), or ``null``.
+``auv_plan``
+    the AUV's a-priori plan while following with one: ``[[lat_deg, lon_deg],
+    ...]`` (empty: none).
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from zarco_core.auv_messages import BuoyStatus
+from zarco_core.auv_messages import AuvPlan, BuoyStatus
 from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import VesselStatus
 from zarco_runtime.guidance.directive import Directive
@@ -77,6 +80,8 @@ class MapInfo:
         self._mission: Mission | None = None
         self._mission_points: list[list[float | None]] = []
         self._last_lines: Mission | None = None
+        self._plan: AuvPlan | None = None
+        self._plan_points: list[list[float | None]] = []
 
     def _points(self, m: Mission) -> list[list[float | None]]:
         if m is not self._mission:
@@ -89,10 +94,19 @@ class MapInfo:
             self._mission, self._mission_points = m, pts
         return self._mission_points
 
+    def _plan_ll(self, plan: AuvPlan | None) -> list[list[float | None]]:
+        if plan is not self._plan:
+            pts: list[list[float | None]] = []
+            for n, e in plan.points if plan is not None else ():
+                lat, lon, _ = self.frame.to_geodetic(n, e)
+                pts.append([num(lat, 8), num(lon, 8)])
+            self._plan, self._plan_points = plan, pts
+        return self._plan_points
+
     def build(self, utc: float, status: VesselStatus | None, directive: Directive | None,
-              buoy: BuoyStatus | None) -> dict[str, Any]:
-        """The ``map`` object at UTC ``utc`` from the latest status, directive and
-        buoy status."""
+              buoy: BuoyStatus | None, plan: AuvPlan | None = None) -> dict[str, Any]:
+        """The ``map`` object at UTC ``utc`` from the latest status, directive, buoy
+        status and AUV plan."""
         home = (_ll(status.home_lat_deg, status.home_lon_deg) if status is not None
                 else None)
         mission: dict[str, Any] | None = None
@@ -106,4 +120,4 @@ class MapInfo:
         return {"t": round(utc, 3), "origin": self.origin, "home": home,
                 "geofence": self.geofence, "beacons": self.beacons, "listener": self.listener,
                 "buoy": _ll(buoy.lat_deg, buoy.lon_deg, 6) if buoy is not None else None,
-                "mission": mission}
+                "mission": mission, "auv_plan": self._plan_ll(plan)}
