@@ -182,6 +182,9 @@ class Commands:
             c.counters.commands_refused += 1
             result = (mav.MAV_RESULT_FAILED if ack.mode == "unknown"
                       else mav.MAV_RESULT_TEMPORARILY_REJECTED)
+            # the reason, to the ground station that asked, whatever the event budget
+            # (the supervisor tells every station within it)
+            c.statustext([link], mav.MAV_SEVERITY_WARNING, f"{name} refused: {ack.reason}")
         c.command_ack(link, src, comp, cmd, result)
 
     # -------------------------------------------------------------- joystick

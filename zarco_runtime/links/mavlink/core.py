@@ -20,7 +20,7 @@ from zarco_core.component import ComponentContext
 from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import CommandAck, Event, Mode, VesselStatus
 from zarco_runtime.links.mavlink.link import Link
-from zarco_runtime.links.mavlink.protocol import mav
+from zarco_runtime.links.mavlink.protocol import mav, text_chunks
 from zarco_runtime.links.mavlink.settings import read_signing_key
 from zarco_runtime.supervision.local import LocalCommands
 
@@ -74,6 +74,9 @@ class Core:
         self.failure: BaseException | None = None
         #: the vessel as the supervisor last told it (mode, armed, home, mission)
         self.status: VesselStatus | None = None
+        #: the id of the last STATUSTEXT sent in several chunks (MAVLink 2 joins
+        #: chunks sharing an id)
+        self.text_id = 0
 
     # --------------------------------------------------------------- vessel
 
@@ -154,6 +157,18 @@ class Core:
     def mission_ack(self, link: Link, src: int, comp: int, result: int,
                     mission_type: int = 0) -> None:
         link.send(mav.MAVLink_mission_ack_message(src, comp, result, mission_type))
+
+    def statustext(self, links: list[Link], severity: int, text: str) -> None:
+        """``text`` as STATUSTEXT to ``links``, in as many chunks as it needs."""
+        chunks = text_chunks(text)
+        tid = 0
+        if len(chunks) > 1:
+            self.text_id = self.text_id % 65535 + 1
+            tid = self.text_id
+        self.counters.statustext += 1
+        for ln in links:
+            for i, c in enumerate(chunks):
+                ln.send(mav.MAVLink_statustext_message(severity, c, tid, i))
 
     def event(self, kind: str, text: str) -> None:
         """An event of this endpoint's own: logged, on the bus, and so to every GCS."""
