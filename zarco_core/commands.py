@@ -267,7 +267,9 @@ def nesting_ok(raw: bytes, limit: int = MAX_DEPTH) -> bool:
     for _ in range(limit):
         if not rest:
             return True
-        inner = rest.replace(b"[]", b"").replace(b"{}", b"")
+        # the innermost pairs are marked first, then dropped: a pair that only
+        # held them (``{[]}``) is one level more, for the next pass
+        inner = rest.replace(b"[]", b".").replace(b"{}", b".").replace(b".", b"")
         if len(inner) == len(rest):
             return False  # unmatched brackets
         rest = inner

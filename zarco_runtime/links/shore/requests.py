@@ -34,7 +34,7 @@ from typing import Any
 
 import msgspec
 
-from zarco_core.commands import MAX_DEPTH, MAX_PAYLOAD_BYTES
+from zarco_core.commands import MAX_DEPTH, MAX_PAYLOAD_BYTES, nesting_ok
 
 #: a command payload larger than this is refused unread (bytes)
 MAX_COMMAND_BYTES = MAX_PAYLOAD_BYTES
@@ -64,7 +64,7 @@ class Request:
     """A command as read from a query."""
 
     name: str
-    args: dict[str, Any]
+    args: dict[str, msgspec.Raw]
     user: str
     id: str | None
 
@@ -166,8 +166,27 @@ def request(key: str, prefix: str, payload: bytes, att: bytes,
     n = len(payload) if size is None else size
     if n > MAX_COMMAND_BYTES:
         raise BadRequest("payload", f"{n} bytes, more than {MAX_COMMAND_BYTES}")
-    args = json_object(payload, "payload", MAX_COMMAND_BYTES) if payload.strip() else {}
-    return Request(name, args, user, cid)
+    return Request(name, command_object(payload) if payload.strip() else {}, user, cid)
+
+
+_FIELDS = msgspec.json.Decoder(dict[str, msgspec.Raw])
+
+
+def command_object(payload: bytes) -> dict[str, msgspec.Raw]:
+    """A command payload checked as a bounded JSON object, its fields left unread:
+    their values (a number beyond a float's range, ``1e999``, included) are the
+    command schema's to judge, which names the field."""
+    if not nesting_ok(payload, MAX_NESTING):
+        raise BadRequest("payload", f"not JSON, or nested deeper than {MAX_NESTING} levels")
+    try:
+        return _FIELDS.decode(payload)
+    except msgspec.ValidationError as exc:
+        got = str(exc).rpartition("got `")[2].rstrip("`")
+        what = {"array": "an array", "str": "a string", "int": "a number", "float": "a number",
+                "bool": "a boolean", "null": "null"}.get(got, got)
+        raise BadRequest("payload", f"must be a JSON object, got {what}") from None
+    except (msgspec.DecodeError, RecursionError) as exc:
+        raise BadRequest("payload", f"not UTF-8 JSON ({exc})") from None
 
 
 def heartbeat(payload: bytes) -> str:
