@@ -29,13 +29,18 @@ def cmd_run(args: argparse.Namespace) -> int:
     return run_vessel(args.config, args.set, args.status)
 
 
+def _not_json(word: str) -> Any:
+    raise json.JSONDecodeError(f"{word} is not a JSON number", word, 0)
+
+
 def _json_text(text: str) -> str:
     """``text`` on one line, as typed: not re-encoded, so the runtime's command
     schema judges the operator's own numbers (``1e999`` is refused there naming
     its field, where ``json.dumps`` would have made it ``Infinity``) and its
-    nesting.  Raises ``json.JSONDecodeError`` when ``text`` is not JSON."""
+    nesting.  Raises ``json.JSONDecodeError`` when ``text`` is not JSON (Python's
+    ``NaN`` and ``Infinity`` included)."""
     try:
-        json.loads(text)
+        json.loads(text, parse_constant=_not_json)
     except json.JSONDecodeError:
         raise
     except (ValueError, RecursionError):

@@ -19,11 +19,14 @@ operator heartbeat     at most :data:`MAX_HEARTBEAT_BYTES` bytes of UTF-8
                        JSON, an object; ``user`` as above, ``t`` a number
 =====================  ===================================================
 
-The decoding is msgspec's (C, bounded recursion): a payload nested thousands
-deep is refused as quickly as any other.  What each command's fields must
-be is the command schema's (:mod:`zarco_core.commands`, applied when the
-command is sent to the supervisor); this module only makes sure that what
-it passes on is a small JSON object.
+The nesting is counted on the raw bytes before anything is decoded
+(:func:`zarco_core.commands.nesting_ok`, a few C-speed passes), so a payload
+nested thousands deep is refused as quickly as any other.  What each
+command's fields must be is the command schema's (:mod:`zarco_core.commands`,
+applied when the command is sent to the supervisor): this module only makes
+sure that what it passes on is a small JSON object, and leaves its fields'
+values unread (msgspec.Raw), so that a number beyond a float's range is
+refused by the schema naming its field rather than here as a whole payload.
 """
 
 from __future__ import annotations
