@@ -254,6 +254,13 @@ def test_one_bad_item_never_drops_another(monkeypatch: pytest.MonkeyPatch) -> No
         sent["key"] = ("Stop", b"{}", b"", "key: expected zarco/v1/cmd/<name>")
         sent["deep"] = ("stop/now", b"{}", b"", "key: expected")
         sent["boom"] = ("stop", b'{"boom": 1}', b"", "OverflowError")
+        # the command schema's, through the link: the field and the reason
+        sent["inf"] = ("mission", b'{"waypoints": [[41, -8], [41.001, -8]], "start_leg": 1e999}',
+                       b"", "start_leg: number out of range")
+        sent["digits"] = ("thrust", b'{"u1": 1' + b"0" * 400 + b', "u2": 0}', b"",
+                          "u1: number out of range")
+        sent["start"] = ("mission", b'{"waypoints": [[41, -8], [41.001, -8]], "start": "false"}',
+                         b"", "start: must be true or false, got text")
         for i in range(12):
             sent[f"good{i}"] = ("stop", b"{}", json.dumps({"id": f"good-{i}",
                                                            "user": "alice"}).encode(), "")
