@@ -162,6 +162,8 @@ CTL_CASES: list[tuple[list[str], int, str]] = [
     (["param", "failsafe.link_lost_s", "1e999"], 1, "refused: value: number out of range"),
     (["param", "failsafe.link_lost", "continue"], 0, ""),
     (["param", "failsafe.link_lost_s", "20"], 0, ""),
+    (["params"], 0, ""),
+    (["status"], 0, ""),
 ]
 
 
@@ -186,5 +188,11 @@ def test_zarco_ctl_sends_what_the_operator_typed(capsys: pytest.CaptureFixture[s
         assert got == code, (argv[0], argv[1:][:1], out[:200], err[:200])
         assert why in err, (argv[0], err[:300])
         assert "Traceback" not in err
-        if code == 0:
+        if argv == ["params"]:  # the registry as it now stands
+            table = {p["name"]: p for p in json.loads(out)}
+            assert table["failsafe.link_lost_s"]["value"] == 20.0
+            assert table["failsafe.link_lost"]["value"] == "continue"
+        elif argv == ["status"]:  # the latest VesselStatus (none published here)
+            assert isinstance(json.loads(out), dict)
+        elif code == 0:
             assert json.loads(out)["ok"] is True

@@ -90,14 +90,16 @@ def cmd_ctl(args: argparse.Namespace) -> int:
         return 2
     try:
         reply = json.loads(buf or b"{}")
-        if not isinstance(reply, dict):
+        # an object; `params` is answered with a list (or an object refusing it)
+        if not isinstance(reply, dict) and not (args.name == "params"
+                                                and isinstance(reply, list)):
             raise ValueError("not an object")
     except ValueError:
         print(f"zarco ctl: {args.socket}: not a reply of a zarco runtime: {buf[:80]!r}",
               file=sys.stderr)
         return 2
     print(json.dumps(reply, indent=2 if listing else None))
-    if not listing and not reply.get("ok"):
+    if isinstance(reply, dict) and "ok" in reply and not reply["ok"]:
         print(f"zarco ctl: refused: {reply.get('reason')}", file=sys.stderr)
         return 1
     return 0
