@@ -158,6 +158,16 @@ def test_unknown_fields_and_commands_are_refused() -> None:
     assert _refused("thrust", {"u1": 1}).field == "u2"  # missing
 
 
+@pytest.mark.parametrize("key", ["\x1b[2J\x1b[31mred", "a\nb", "\u2028x", "\x00", "\x9b31m"])
+def test_a_refusal_never_carries_control_characters(key: str) -> None:
+    """An unknown field's name is shown in the refusal, escaped: the refusal goes
+    to terminals (``zarco ctl``, ``zarco shore``) and to the event stream."""
+    for payload in (json.dumps({"mode": "hold", key: 1}), {"mode": "hold", key: 1}):
+        e = _refused("mode", payload)
+        assert e.reason == "unknown field" and str(e).isprintable()
+        assert e.field == key.encode("unicode_escape").decode("ascii")
+
+
 def test_stop_is_always_a_stop() -> None:
     for payload in (None, b"", b"{}", b"not json", b"[" * 30000, {"x": 1}, "\xff"):
         assert decode("stop", payload) == StopArgs()
@@ -197,6 +207,6 @@ def test_any_payload_is_a_command_or_a_refusal(name: str, payload: Any) -> None:
     try:
         a = decode(name, payload)
     except CommandRefused as exc:
-        assert str(exc)
+        assert str(exc) and str(exc).isprintable()
         return
     assert type(a) is SCHEMAS[name]

@@ -195,9 +195,21 @@ class CommandRefused(ValueError):
     ``waypoints[3][0]``, "" for the payload as a whole) and ``reason``."""
 
     def __init__(self, field: str, reason: str) -> None:
-        self.field = field
-        self.reason = reason
-        super().__init__(f"{field}: {reason}" if field else reason)
+        # what the sender wrote may be in either (an unknown field's name): a
+        # refusal is shown on terminals and in the event stream, so it carries
+        # no control characters (a terminal escape shows as ``\x1b``)
+        self.field = shown(field)
+        self.reason = shown(reason)
+        super().__init__(f"{self.field}: {self.reason}" if field else self.reason)
+
+
+def shown(text: str) -> str:
+    """``text`` with every character that is not printable written as its
+    escape (``\x1b``, ``\n``, ``\u2028``): safe on a terminal."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
+                   for c in text)
 
 
 _PATH = re.compile(r" - at `\$(.*)`$")
