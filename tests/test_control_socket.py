@@ -162,6 +162,8 @@ CTL_CASES: list[tuple[list[str], int, str]] = [
     (["param", "failsafe.link_lost_s", "1e999"], 1, "refused: value: number out of range"),
     (["param", "failsafe.link_lost", "continue"], 0, ""),
     (["param", "failsafe.link_lost_s", "20"], 0, ""),
+    (["param", "failsafe.link_lost_s"], 2, "param NAME VALUE"),
+    (["param", '{"name": "hold.k_s", "value": 1e999}'], 1, "refused: value: number out of range"),
     (["params"], 0, ""),
     (["status"], 0, ""),
 ]

@@ -63,6 +63,11 @@ def cmd_ctl(args: argparse.Namespace) -> int:
             value = json.dumps(args.args[1])  # a word: one of the parameter's choices
         line = (f'{{"name": "param", "args": {{"name": {json.dumps(args.args[0])}, '
                 f'"value": {value}}}}}')
+    elif args.name == "param" and len(args.args) == 1 \
+            and not args.args[0].lstrip().startswith("{"):
+        print("zarco ctl: param NAME VALUE (e.g. `zarco ctl param failsafe.link_lost_s 20`), "
+              "or one JSON object", file=sys.stderr)
+        return 2
     elif len(args.args) > 1:
         print("zarco ctl: one ARGS (a JSON object), or `param NAME VALUE`", file=sys.stderr)
         return 2
