@@ -146,7 +146,8 @@ def peek_user(att: bytes) -> str:
     except Exception:
         return ""
     user = meta.get("user") if isinstance(meta, dict) else None
-    return user if isinstance(user, str) and len(user) <= MAX_NAME_CHARS else ""
+    return user if isinstance(user, str) and len(user) <= MAX_NAME_CHARS \
+        and user.isprintable() else ""
 
 
 def command_name(key: str, prefix: str) -> str:
