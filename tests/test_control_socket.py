@@ -125,7 +125,9 @@ def test_the_refusals_say_what_was_wrong() -> None:
             b'{"name": "thrust", "args": {"u1": 40, "u2": -40}}',
             b'{"name": "param", "args": {"name": "failsafe.link_lost_s", "value": 20}}',
             b'{"name": "param", "args": {"name": "hold.k_s", "value": 12}}',
-            b'{"name": "params"}']
+            b'{"name": "params"}',
+            b'{"name": "stop", "args": ' + b"[" * 30000,  # stop is always accepted
+            b'{"name": "\\u001b[2Jfly"}']
     replies, ctx, thrust = asyncio.run(_exchange(sent))
     r = replies[2:]
     assert r[0]["reason"].startswith("bad request: JSON is malformed")
@@ -141,6 +143,8 @@ def test_the_refusals_say_what_was_wrong() -> None:
     assert r[8]["ok"]
     table = {p["name"]: p for p in r[9]}
     assert table["failsafe.link_lost_s"]["value"] == 10.0 and table["hold.k_s"]["value"] == 12.0
+    assert r[10]["ok"] and r[10]["mode"] == "idle"
+    assert r[11]["reason"].startswith("unknown command '\\x1b[2Jfly'")
     assert ctx.error is None
 
 
