@@ -24,6 +24,7 @@ from zarco_core.commands import (
     StopArgs,
     ThrustArgs,
     decode,
+    nesting_ok,
     to_json,
 )
 from zarco_core.modes import Mode
@@ -210,3 +211,26 @@ def test_any_payload_is_a_command_or_a_refusal(name: str, payload: Any) -> None:
         assert str(exc) and str(exc).isprintable()
         return
     assert type(a) is SCHEMAS[name]
+
+
+def _depth(v: Any) -> int:
+    if isinstance(v, dict):
+        return 1 + max(map(_depth, v.values()), default=0)
+    if isinstance(v, list):
+        return 1 + max(map(_depth, v), default=0)
+    return 0
+
+
+@settings(max_examples=300)
+@given(st.recursive(st.none() | st.integers() | st.text(alphabet='[]{}"\\ ab', max_size=6),
+                    lambda c: st.lists(c, max_size=3)
+                    | st.dictionaries(st.text(alphabet='[]{}"\\ ab', max_size=4), c,
+                                      max_size=3),
+                    max_leaves=25),
+       st.integers(1, 10))
+def test_nesting_is_counted_as_json_nests(v: Any, limit: int) -> None:
+    """The bytes-level count agrees with the parsed value's depth, brackets inside
+    strings (escaped quotes included) not counted, ``{[]}`` two levels."""
+    raw = json.dumps(v).encode()
+    assert nesting_ok(raw, limit) == (_depth(v) <= limit)
+    assert not nesting_ok(raw + b"]", 100)  # unmatched
