@@ -126,6 +126,8 @@ class Commands:
             msg_id = whole(p1, 0, MSG_ID_MAX)
             ack(mav.MAV_RESULT_DENIED if msg_id is None
                 else self.streams.request_message(link, msg_id, p2))
+        elif cmd == mav.MAV_CMD_GET_HOME_POSITION:  # deprecated, still asked
+            ack(self.streams.request_message(link, mav.MAVLINK_MSG_ID_HOME_POSITION, 0.0))
         elif cmd == mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             link.send(self.streams.autopilot_version())
             ack(mav.MAV_RESULT_ACCEPTED)

@@ -11,14 +11,15 @@ MAV_AUTOPILOT_GENERIC, system ``system_id``, component ``component_id``.
 
 Out, on every connection:
 
-* HEARTBEAT at 1 Hz: the armed flag, the custom mode of the supervisor's mode
-  (:mod:`.protocol`), system status STANDBY (idle), ACTIVE, or CRITICAL while a
-  failsafe is active;
+* HEARTBEAT at 1 Hz, from the supervisor's first status on (a ground station
+  that hears the boat can ask for its home and get it): the armed flag, the
+  custom mode of the supervisor's mode (:mod:`.protocol`), system status
+  STANDBY (idle), ACTIVE, or CRITICAL while a failsafe is active;
 * streams at rates a GCS sets (SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM) per
   connection: SYS_STATUS, GPS_RAW_INT (RTK float / fixed as fix types 5 / 6),
   GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SERVO_OUTPUT_RAW (the commanded
   thrust as PWM), MISSION_CURRENT (also at every change), HOME_POSITION (on
-  request);
+  request, and at once when the supervisor's home becomes known or moves);
 * a STATUSTEXT for every Event of the runtime (mode changes, acknowledgements,
   failsafes, faults), an identical text at most every 2 s;
 * MISSION_ITEM_REACHED as each waypoint of the mission is passed.
@@ -278,7 +279,12 @@ class MavlinkEndpoint:
     # ============================================================ bus → GCS
 
     def _on_status(self, st: VesselStatus) -> None:
-        self.core.status = st
+        core = self.core
+        home = core.home
+        core.status = st
+        if core.home is not None and core.home != home:
+            # a ground station that asked before home was known gets it now
+            self.streams.broadcast("HOME_POSITION", core.clock.now())
         self.transfer.on_status(st)
         self.telemetry.measure_load()
 
