@@ -90,7 +90,7 @@ from zarco_runtime.links.mavlink.commands import Commands
 from zarco_runtime.links.mavlink.core import TEXT_REPEAT_S, Core, Counters
 from zarco_runtime.links.mavlink.link import Link
 from zarco_runtime.links.mavlink.param_protocol import ParamProtocol
-from zarco_runtime.links.mavlink.protocol import event_severity, mav, text_chunks
+from zarco_runtime.links.mavlink.protocol import event_severity, mav
 from zarco_runtime.links.mavlink.rtcm import RtcmReassembler
 from zarco_runtime.links.mavlink.streams import Streams
 from zarco_runtime.links.mavlink.transfer import MissionTransfer
@@ -102,8 +102,6 @@ log = logging.getLogger("zarco.mavlink")
 
 #: a GCS heard again after this long is announced again (s)
 GCS_QUIET_S = 5.0
-#: texts remembered for the repeat check
-MAX_TEXTS = 256
 
 
 class MavlinkEndpoint:
@@ -123,8 +121,6 @@ class MavlinkEndpoint:
         self.rtcm = RtcmReassembler()
         self.dir_seq = -1
         self.unsigned_t: dict[tuple[int, str], float] = {}
-        self.texts: dict[str, float] = {}
-        self.text_id = 0
         self.gcs_seen: dict[int, float] = {}
         ctx.listen(Event, self._on_event)
         ctx.listen(GpsFix, self.telemetry.on_fix)
@@ -296,23 +292,4 @@ class MavlinkEndpoint:
 
     def _on_event(self, e: Event) -> None:
         core = self.core
-        now = core.clock.now()
-        last = self.texts.get(e.text)
-        if last is not None and now - last < TEXT_REPEAT_S:
-            core.counters.statustext_repeats += 1
-            return
-        self.texts[e.text] = now
-        if len(self.texts) > MAX_TEXTS:
-            self.texts = {k: v for k, v in self.texts.items() if now - v < TEXT_REPEAT_S}
-            if len(self.texts) > MAX_TEXTS:  # a flood of distinct texts: forget them
-                self.texts = {e.text: now}
-        sev = event_severity(e.kind, e.text)
-        chunks = text_chunks(e.text)
-        tid = 0
-        if len(chunks) > 1:
-            self.text_id = self.text_id % 65535 + 1
-            tid = self.text_id
-        core.counters.statustext += 1
-        for ln in core.links:
-            for i, c in enumerate(chunks):
-                ln.send(mav.MAVLink_statustext_message(sev, c, tid, i))
+        core.broadcast_text(event_severity(e.kind, e.text), e.text, core.clock.now())
