@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from zarco_core.config import ConfigError
+from zarco_core.paths import writable_dir
 
 
 def _positive_int(text: str) -> int:
@@ -93,7 +94,11 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     m0 = draw_mission(spec, args.seed, 0)
     scenario_from_data(spec.scenario_data(), f"{spec.scenario_file}", [*m0.overrides, *sets],
                        m0.scenario_seed)
-    out = Path(args.out or Path("out") / "campaign" / f"{spec.name}-seed{args.seed}")
+    if args.out:  # the operator's directory: its parent must exist (nothing made above it)
+        out = writable_dir(args.out, "--out", create=True)
+    else:  # the default place, made as needed
+        out = Path("out") / "campaign" / f"{spec.name}-seed{args.seed}"
+        out.mkdir(parents=True, exist_ok=True)
     checks = list(drawer(spec.kind).checks)
     header = {"name": spec.name, "kind": spec.kind, "spec": spec.file, "digest": spec.digest,
               "scenario": spec.scenario_file, "seed": args.seed, "sets": sets,
