@@ -4,7 +4,8 @@ COMMAND_LONG and COMMAND_INT (arming, modes, mission start, return, hold),
 SET_MODE and MANUAL_CONTROL become supervisor commands with source
 ``mavlink:<system id>``; each COMMAND_LONG / COMMAND_INT / SET_MODE gets one
 COMMAND_ACK: ACCEPTED; TEMPORARILY_REJECTED when the supervisor refuses (its
-reason follows as a STATUSTEXT); DENIED for arguments the boat does not take;
+reason goes just before, as a STATUSTEXT to that ground station,
+:meth:`.Core.tell_refusal`); DENIED for arguments the boat does not take;
 UNSUPPORTED for commands it does not know; FAILED when the supervisor did not
 answer.  The requests a ground station makes on connecting (REQUEST_MESSAGE,
 capabilities, message intervals) are answered here without the supervisor.

@@ -47,7 +47,8 @@ HEARTBEAT from a GCS            OperatorHeartbeat(link="mavlink") (``failsafe.li
 
 Arguments are built with the typed command schema (:mod:`zarco_core.commands`).
 COMMAND_ACK results: ACCEPTED; TEMPORARILY_REJECTED when the supervisor refuses
-(its reason follows as a STATUSTEXT); DENIED for arguments the boat does not
+(its reason goes just before, as a STATUSTEXT to the ground station that
+asked, even when the supervisor's event of it is held back); DENIED for arguments the boat does not
 take (the schema's field and reason follow as a STATUSTEXT); UNSUPPORTED for
 commands it does not know; FAILED when the supervisor did not answer.  Mode,
 armed and home are the supervisor's (its VesselStatus), never copies of the
