@@ -289,6 +289,17 @@ def test_a_ground_station_sees_the_boat_and_the_simulated_auv(tmp_path: Any) -> 
         ack = gcs.wait(lambda m: m.get_type() == "COMMAND_ACK"
                        and m.command == mav.MAV_CMD_COMPONENT_ARM_DISARM)
         assert ack.get_srcSystem() == 2 and ack.result == mav.MAV_RESULT_DENIED
+        # as a multi-vehicle ground station sorts them: two systems, each an
+        # autopilot component (1); the AUV's system says only what it is, where it
+        # is and its refusals, the boat's telemetry never carries its id
+        gcs.collect(1.5)
+        by_sys: dict[int, set[str]] = {}
+        for _, m in gcs.log:
+            by_sys.setdefault(m.get_srcSystem(), set()).add(m.get_type())
+            assert m.get_srcComponent() == mav.MAV_COMP_ID_AUTOPILOT1, m
+        assert set(by_sys) == {1, 2}, by_sys
+        assert by_sys[2] == {"HEARTBEAT", "GLOBAL_POSITION_INT", "COMMAND_ACK"}, by_sys[2]
+        assert {"SYS_STATUS", "GPS_RAW_INT", "ATTITUDE", "VFR_HUD", "STATUSTEXT"} <= by_sys[1]
     finally:
         if boat.poll() is None:
             boat.terminate()
