@@ -284,6 +284,54 @@ def test_arming_is_published_to_the_control_loop_and_the_status() -> None:
     _run(body)
 
 
+@pytest.mark.parametrize("action", ["continue", "hold"])
+def test_a_driving_failsafe_is_published_to_the_control_loop_until_it_clears(
+        action: str) -> None:
+    """From a driving failsafe's entry until it clears (clear_after_s of health,
+    not the moment its condition ends) the directive carries it, whatever the
+    action: continue keeps the mode, hold changes it; both hold the thrust."""
+    cfg = RuntimeConfig()
+    cfg.failsafe.thruster_silent = action
+    cfg.failsafe.clear_after_s = 1.5
+
+    async def body(r: Rig) -> None:
+        r.healthy()
+        assert (await r.send("arm")).ok and (await r.send("mode", {"mode": "manual"})).ok
+        seq = r.sup.directive.seq
+        seen: list[tuple[float, tuple[str, ...], str]] = []
+
+        async def tick(answer: bool) -> None:
+            await asyncio.sleep(0.05)
+            t = r.clock.now()
+            r.bus.publish(Heading(t, "compass", "HDT", 0.0, True, 0.0))
+            if answer:
+                r.bus.publish(ThrusterStatus(t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+            r.bus.publish(NavState(t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 41.0, -8.0,
+                                   FixQuality.RTK_FIXED, True, True, (), 0.0))
+            r.sup.evaluate(t)
+            d = r.sup.directive
+            seen.append((t, d.driving_failsafes, d.mode.value))
+
+        t0 = r.clock.now()
+        for _ in range(20):  # silent for 1 s
+            await tick(False)
+        t_back = r.clock.now()
+        for _ in range(50):  # answering again for 2.5 s
+            await tick(True)
+        lim = r.cfg.failsafe.thruster_silent_s
+        held = [t for t, fs, _ in seen if fs == ("thruster_silent",)]
+        assert held and t0 + lim < held[0] <= t0 + lim + 0.1, held[:2]
+        assert t_back + 1.5 <= held[-1] + 0.05 and held[-1] < t_back + 1.6
+        assert all(fs == () for t, fs, _ in seen if t < held[0] or t > held[-1])
+        assert r.sup.directive.armed
+        if r.cfg.failsafe.thruster_silent == "continue":
+            assert all(m == "manual" for _, _, m in seen)
+            assert r.sup.directive.seq == seq  # the same directive, republished
+        else:
+            assert all(m == ("hold" if t >= held[0] else "manual") for t, _, m in seen)
+    _run(body, cfg=cfg)
+
+
 # -------------------------------------------------------------- state file
 
 

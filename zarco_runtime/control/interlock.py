@@ -62,11 +62,13 @@ def thruster_silent(now: float, status_ref_t: float | None,
 
 
 class Limits(Protocol):
-    """The limits of the three conditions (s): the failsafe table's (``[failsafe]``)."""
+    """The limits of the three conditions and the time a condition must have been
+    healthy to clear (s): the failsafe table's (``[failsafe]``)."""
 
     position_lost_s: float
     heading_lost_s: float
     thruster_silent_s: float
+    clear_after_s: float
 
 
 class DriveInterlock:
@@ -75,8 +77,9 @@ class DriveInterlock:
     Its listeners note the last compass heading and thruster status (and the
     first command sent); :meth:`hazard` says why driving is unsafe now ("" when
     it is not), with the limits of the live failsafe table (a parameter change
-    applies at once).  ``thrusters``: a thruster controller is configured (else
-    its silence is no condition).
+    applies at once), latched: the last condition seen holds until it has been
+    healthy for ``clear_after_s``.  ``thrusters``: a thruster controller is
+    configured (else its silence is no condition).
     """
 
     def __init__(self, limits: Limits, thrusters: bool = True) -> None:
@@ -85,6 +88,8 @@ class DriveInterlock:
         self.last_heading_t: float | None = None
         self.last_status_t: float | None = None
         self.first_cmd_t: float | None = None
+        #: the last condition seen: (runtime time, s; its reason)
+        self.last_seen: tuple[float, str] | None = None
 
     def on_heading(self, m: Heading) -> None:
         self.last_heading_t = m.t
@@ -101,8 +106,8 @@ class DriveInterlock:
         """The thruster controller's last answer, else the first command sent."""
         return self.last_status_t if self.last_status_t is not None else self.first_cmd_t
 
-    def hazard(self, now: float, nav: NavState | None) -> str:
-        """Why nothing may drive now ("" when driving is allowed)."""
+    def condition(self, now: float, nav: NavState | None) -> str:
+        """Which of the three conditions holds now ("" when none does), unlatched."""
         lim = self.limits
         why, _ = position_lost(now, nav, lim.position_lost_s)
         if not why:
@@ -110,3 +115,18 @@ class DriveInterlock:
         if not why and self.thrusters:
             why, _ = thruster_silent(now, self.status_ref_t, lim.thruster_silent_s)
         return why
+
+    def hazard(self, now: float, nav: NavState | None) -> str:
+        """Why nothing may drive now ("" when driving is allowed): a condition that
+        holds, or the last one seen until it has been healthy for ``clear_after_s``."""
+        why = self.condition(now, nav)
+        if why:
+            self.last_seen = (now, why)
+            return why
+        if self.last_seen is not None:
+            seen_t, was = self.last_seen
+            wait = self.limits.clear_after_s
+            if now - seen_t < wait:
+                return f"{was}; healthy for {now - seen_t:.1f} s of the {wait:g} s to clear"
+            self.last_seen = None
+        return ""

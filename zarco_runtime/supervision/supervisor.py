@@ -24,9 +24,14 @@ operator's explicit choice) and starts the mission, except after a restart
 
 **Failsafes latch** (:mod:`.failsafes`): conditions are judged in every mode;
 one clears only after its condition has been healthy for
-``failsafe.clear_after_s``; an ``idle`` action disarms, so the boat stays
-still until an operator acts; ``failsafe.after_clear`` applies only to a boat
-a ``hold`` or ``return`` action kept under way.
+``failsafe.clear_after_s``.  While a driving failsafe (``position_lost``,
+``heading_lost``, ``thruster_silent``) is active, from its entry until it
+clears, the directive carries it (``driving_failsafes``) and the control task
+sends zero thrust whatever the mode and the action (``hold``, ``return``,
+``continue``): the action sets the mode the boat is in when it clears.  An
+``idle`` action disarms, so the boat stays still until an operator acts;
+``failsafe.after_clear`` applies only to a boat a ``hold`` or ``return``
+action kept under way; after ``continue`` the mode goes on.
 
 **Parameters** are ``param`` commands (:mod:`.params`): validated, refused
 under way where unsafe, applied to the live configuration, published as
@@ -292,12 +297,18 @@ class Supervisor:
         age = self.now() - n.t
         return n.x_m + n.vn_mps * age, n.y_m + n.ve_mps * age
 
+    def _driving_failsafes(self) -> tuple[str, ...]:
+        """The driving failsafes active now (zero thrust until they clear)."""
+        return tuple(sorted(self.failsafes.driving()))
+
     def _publish_directive(self) -> None:
-        """The current directive again, now, with the current arming (the same
-        ``seq``: what to do has not changed, only whether thrust is allowed)."""
+        """The current directive again, now, with the current arming and driving
+        failsafes (the same ``seq``: what to do has not changed, only whether
+        thrust is allowed)."""
         d = self.directive
         self.directive = Directive(self.now(), d.seq, d.mode, d.mission, d.start_leg,
-                                   d.point, d.reason, d.since, self.armed)
+                                   d.point, d.reason, d.since, self.armed,
+                                   self._driving_failsafes())
         self.bus.publish(self.directive)
         self.status_due = True
 
@@ -323,7 +334,8 @@ class Supervisor:
         elif mode is Mode.FOLLOW:
             self.progress = MissionProgress("follow", mission.name if mission else "follow")
         self.directive = Directive(self.now(), self.seq, mode, mission, start_leg, point, reason,
-                                   armed=self.armed)
+                                   armed=self.armed,
+                                   driving_failsafes=self._driving_failsafes())
         self.directive_t0 = self.directive.t
         self.auv_held = False
         self.bus.publish(self.directive)
@@ -680,6 +692,8 @@ class Supervisor:
                 self.event("failsafe", f"{tr.name} {tr.reason}")
                 if not self.failsafes.active:
                     self._after_clear()
+        if self.directive.driving_failsafes != self._driving_failsafes():
+            self._publish_directive()  # the control task holds the thrust until they clear
         bm = self.boot.mission
         if self.pending_start and bm is not None:
             self._autostart(bm)
@@ -839,7 +853,8 @@ class Supervisor:
             if now >= next_directive:
                 d = self.directive  # the same directive, still meant
                 self.directive = Directive(now, d.seq, d.mode, d.mission, d.start_leg,
-                                           d.point, d.reason, d.since, d.armed)
+                                           d.point, d.reason, d.since, d.armed,
+                                           d.driving_failsafes)
                 self.bus.publish(self.directive)
                 next_directive = now + sup.directive_period_s
             if now >= next_status or self.status_due:
