@@ -32,6 +32,7 @@ from zarco_core.messages import (
     VesselStatus,
 )
 from zarco_runtime.settings import RuntimeConfig
+from zarco_runtime.supervision import arming, command_handlers
 from zarco_runtime.supervision.local import LocalCommands
 from zarco_runtime.supervision.params import NAMES, ParamRefused, apply, param_table
 from zarco_runtime.supervision.state_file import SavedMission, StateFile
@@ -194,7 +195,8 @@ def test_hostile_payloads_get_one_refusal_each_and_restart_nothing(name: str,
     _run(body)
 
 
-def test_an_error_while_handling_is_a_refusal_and_a_fault_not_a_restart() -> None:
+def test_an_error_while_handling_is_a_refusal_and_a_fault_not_a_restart(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     async def body(r: Rig) -> None:
         r.healthy()
         assert (await r.send("arm")).ok
@@ -202,7 +204,7 @@ def test_an_error_while_handling_is_a_refusal_and_a_fault_not_a_restart() -> Non
         def broken(*_a: object) -> str:
             raise OverflowError("int too large to convert to float")
 
-        r.sup._mode = broken  # type: ignore[method-assign,assignment]
+        monkeypatch.setattr(command_handlers, "mode", broken)
         a = await r.send("mode", {"mode": "hold"})
         assert not a.ok and a.reason == "not handled: internal error (OverflowError)"
         assert r.faults and "OverflowError" in r.faults[-1].reason
@@ -213,7 +215,7 @@ def test_an_error_while_handling_is_a_refusal_and_a_fault_not_a_restart() -> Non
         def broken_stop(*_a: object) -> None:
             raise RuntimeError("bug in stop")
 
-        r.sup._disarm = broken_stop  # type: ignore[method-assign,assignment]
+        monkeypatch.setattr(arming, "disarm", broken_stop)
         s = await r.send("stop")
         assert s.ok and not r.sup.armed and r.sup.mode.value == "idle"  # stop still stops
         assert r.sup.directive.armed is False
