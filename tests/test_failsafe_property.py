@@ -6,9 +6,10 @@ frozen, noisy, truncated, bad checksums, split writes, GPS fix changes; on the
 GPS, the compass and the thruster controller, at any time and for any length),
 often a device that flaps (silent, then answering for a moment, again and
 again), the failsafe table's actions for the three driving conditions
-(``idle``, ``hold`` where the table allows it, or ``continue``: the mode goes
-on and only the latch stands between a fault and the thrusters) and
-``clear_after_s``.  A lines mission autostarts; the run is simulated on the
+(``idle``; ``continue``, where the mode goes on and only the latch stands
+between a fault and the thrusters; ``hold`` and ``return`` for the thruster
+controller, the table allowing them there only) and ``clear_after_s``
+(0-4 s).  A lines mission autostarts; the run is simulated on the
 virtual clock.  Judged from the bus alone, independently of the runtime's own
 code:
 
