@@ -12,9 +12,12 @@ from typing import Any
 
 import pytest
 
+from drivers.sim.params import ThrusterParams
+from drivers.sim.thruster_model import U_MAX, thruster_thrust
 from zarco_core.config import ConfigError, parse_override
 from zarco_tools.campaign.draw import draw_mission
 from zarco_tools.campaign.follow_judge import judge_follow
+from zarco_tools.campaign.physics import straight_thrust
 from zarco_tools.campaign.spec import load_spec, parse_choice, with_choices
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -285,3 +288,17 @@ def test_sound_speed_with_two_beacons_is_not_observable() -> None:
 def test_nan_in_a_report_fails_the_json_check() -> None:
     j = judge_follow(TARGETS, FACT, report(track_error_rms_m=float("nan")))
     assert "json" in j.fails
+
+
+@pytest.mark.parametrize("mismatch", [-0.1, 0.0, 0.06])
+def test_the_closing_speed_counts_only_the_thrust_a_boat_going_straight_has(
+        mismatch: float) -> None:
+    """With the simulated thrusters' mismatch (one stronger than the other) a
+    boat going straight holds the stronger back to the weaker's full thrust:
+    that, not the two full thrusts, is its top speed."""
+    p = ThrusterParams(mismatch=mismatch)
+    f1, f2 = thruster_thrust(U_MAX, p, 1), thruster_thrust(U_MAX, p, 2)
+    assert straight_thrust(p.fwd_max_n, mismatch, 0.0, 0.0) == pytest.approx(2.0 * min(f1, f2))
+    assert straight_thrust(p.fwd_max_n, mismatch, 3.0, -2.0) < 2.0 * min(f1, f2)
+    if mismatch:
+        assert straight_thrust(p.fwd_max_n, mismatch, 0.0, 0.0) < f1 + f2
