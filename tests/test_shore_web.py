@@ -285,6 +285,12 @@ def test_stop_button_and_escape_stop_the_boat(rig: Rig) -> None:
     page.click("#cmd-follow")
     _text(page, "#cmd-result", "t.startsWith('follow: accepted')")
     _text(page, "#mode", "t === 'follow'")
+    # hold here, then return: the boat's modes, as the page shows them
+    for button, mode in (("hold", "hold"), ("return", "return")):
+        page.click(f"#cmd-{button}")
+        _text(page, "#cmd-result", f"t.startsWith('{button}: accepted by alpha, mode {mode}')")
+        _text(page, "#mode", f"t === '{mode}'")
+        _until(lambda mode=mode: _mode(rig, "alpha") == mode, what=f"alpha in {mode}")
     page.keyboard.press("Escape")
     _text(page, "#mode", "t === 'idle'", 10_000)
     assert _mode(rig, "alpha") == "idle"
