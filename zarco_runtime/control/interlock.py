@@ -9,6 +9,13 @@ checks them itself at every tick through a :class:`DriveInterlock`, so a
 command computed between two supervisor evaluations is zero as soon as a
 condition holds, not up to one evaluation later.
 
+A condition latches, here as in the failsafe table: once seen, driving stays
+unsafe until the condition has been healthy for ``failsafe.clear_after_s``, so
+a condition that flaps (a thruster controller answering now and then) gives
+no thrust between its flaps, even a flap too short for the supervisor to see.
+The supervisor's own latch (a failsafe active from its entry until it clears)
+reaches the control task with the directive (``driving_failsafes``).
+
 Times are runtime clock seconds; a reason "" means the condition does not hold.
 """
 
