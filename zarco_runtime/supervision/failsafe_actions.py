@@ -59,6 +59,7 @@ def evaluate(sup: Supervisor, now: float) -> None:
         if p is not None:
             sup.home = p
             sup.fence.home = p
+            sup.status_due = True  # ground stations learn home now, not a period later
             lat, lon, _ = sup.frame.to_geodetic(*p)
             sup.event("mission", f"home set at {lat:.6f}, {lon:.6f} (first position)")
     for tr in sup.failsafes.evaluate(inputs(sup, now)):
