@@ -306,6 +306,22 @@ def test_a_ground_station_drives_the_simulated_boat() -> None:
         assert gcs.command(mav.MAV_CMD_DO_SET_MODE, 1, 5) == mav.MAV_RESULT_ACCEPTED
         gcs.heartbeat(lambda m: m.custom_mode == 5)
         assert gcs.command(mav.MAV_CMD_DO_SET_MODE, 1, 99) == mav.MAV_RESULT_DENIED
+        # "go to location" (DO_REPOSITION, as COMMAND_INT): it holds at that point
+        pos = gcs.wait("GLOBAL_POSITION_INT")
+        here = (pos.lat / 1e7, pos.lon / 1e7)
+        dn, de = random.uniform(-8.0, 8.0), random.uniform(-8.0, 8.0)
+        goto = (here[0] + dn / 111_320.0,
+                here[1] + de / (111_320.0 * math.cos(math.radians(here[0]))))
+        gcs.mav.command_int_send(BOAT[0], BOAT[1], mav.MAV_FRAME_GLOBAL,
+                                 mav.MAV_CMD_DO_REPOSITION, 0, 0, -1.0, 1.0, 0.0,
+                                 float("nan"), round(goto[0] * 1e7), round(goto[1] * 1e7), 0.0)
+        ack = gcs.wait("COMMAND_ACK", lambda a: a.command == mav.MAV_CMD_DO_REPOSITION)
+        assert ack.result == mav.MAV_RESULT_ACCEPTED
+        gcs.wait("GLOBAL_POSITION_INT",
+                 lambda m: dist_m((m.lat / 1e7, m.lon / 1e7), goto) < 2.0, 40.0)
+        assert gcs.last["HEARTBEAT"].custom_mode == 5
+        assert gcs.command(mav.MAV_CMD_DO_REPOSITION, -1.0, 1.0, 0.0, float("nan"),
+                           float("nan"), float("nan")) == mav.MAV_RESULT_DENIED
 
         # --- manual with the joystick: forward 50 %, turning to starboard 30 %
         gcs.run_for(0.5)

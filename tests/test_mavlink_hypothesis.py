@@ -52,7 +52,7 @@ targets = st.sampled_from([0, BOAT, BOAT, BOAT, AUV, OTHER])
 components = st.sampled_from([0, COMP, COMP, 5])
 COMMANDS = [mav.MAV_CMD_COMPONENT_ARM_DISARM, mav.MAV_CMD_DO_SET_MODE,
             mav.MAV_CMD_MISSION_START, mav.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-            mav.MAV_CMD_NAV_LOITER_UNLIM, mav.MAV_CMD_REQUEST_MESSAGE,
+            mav.MAV_CMD_NAV_LOITER_UNLIM, mav.MAV_CMD_DO_REPOSITION, mav.MAV_CMD_REQUEST_MESSAGE,
             mav.MAV_CMD_SET_MESSAGE_INTERVAL, mav.MAV_CMD_GET_MESSAGE_INTERVAL,
             mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES]
 command_ids = st.one_of(st.sampled_from(COMMANDS), u16)

@@ -119,7 +119,9 @@ class Commands:
             supervise("mode", {"mode": Mode.LINES.value}, "")
         elif cmd == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             supervise("mode", {"mode": Mode.RETURN.value}, "")
-        elif cmd == mav.MAV_CMD_NAV_LOITER_UNLIM:
+        elif cmd in (mav.MAV_CMD_NAV_LOITER_UNLIM, mav.MAV_CMD_DO_REPOSITION):
+            # hold (here, or at the given point); DO_REPOSITION is a ground station's
+            # "go to location": hold at that point, which it must give
             if is_int:
                 lat, lon = float(m.x) / 1e7, float(m.y) / 1e7
             else:
@@ -127,6 +129,9 @@ class Commands:
             args: dict[str, Any] = {"mode": Mode.HOLD.value}
             if math.isfinite(lat) and math.isfinite(lon) and (lat != 0.0 or lon != 0.0):
                 args.update(lat_deg=lat, lon_deg=lon)
+            elif cmd == mav.MAV_CMD_DO_REPOSITION:
+                ack(mav.MAV_RESULT_DENIED)
+                return
             supervise("mode", args, "")
         elif cmd == mav.MAV_CMD_REQUEST_MESSAGE:
             msg_id = whole(p1, 0, MSG_ID_MAX)

@@ -40,6 +40,7 @@ COMPONENT_ARM_DISARM            ``arm`` / ``disarm`` (disarmed is idle: zero thr
 DO_SET_MODE, SET_MODE           ``mode`` of the custom mode (:mod:`.protocol`)
 NAV_RETURN_TO_LAUNCH            ``mode {"mode": "return"}``
 NAV_LOITER_UNLIM                ``mode {"mode": "hold"}`` (at the given point, if any)
+DO_REPOSITION ("go to")         ``mode {"mode": "hold"}`` at the given point (none: DENIED)
 MANUAL_CONTROL                  ``thrust {"u1", "u2"}`` (manual mode; renews the lease)
 GPS_RTCM_DATA                   RtcmCorrections(source="mavlink"), blocks reassembled
 HEARTBEAT from a GCS            OperatorHeartbeat(link="mavlink") (``failsafe.link``)
