@@ -61,6 +61,8 @@ ATTACH_TIMEOUT_S = 30.0
 STATUS_POLL_S = 0.2
 #: how long the runtime may take to stop after SIGTERM (s)
 STOP_TIMEOUT_S = 10.0
+#: after the truth reached the mission's end, how long the runtime has to see it too (s)
+RUNTIME_SEES_END_S = 3.0
 #: a leg counts as "with faults" if it overlaps a fault window widened by this (s)
 RECOVERY_MARGIN_S = 5.0
 #: resource samples period (s)
@@ -473,6 +475,13 @@ async def _run_rig(scn: Scenario, faults: list[FaultSpec], legs: list[Leg], run_
             stop = f"time limit {limit_s:g} s"
         sim.recording = False
         sim_seconds = sim.now()
+        if done in finished:
+            # the rig judges the end on the truth, the runtime on its estimate: give
+            # it a moment to see the end too (its mode leaves lines) before the stop
+            see_by = loop.time() + RUNTIME_SEES_END_S
+            while loop.time() < see_by and not exited.done() and rst.modes[-1:] == ["lines"]:
+                await asyncio.sleep(STATUS_POLL_S / 4)
+                rst.poll()
         # shutdown: the runtime must write zero thrust and exit cleanly
         n_cmds = len(sim.timing.commands)
         early_exit = exited.done()

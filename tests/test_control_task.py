@@ -81,15 +81,28 @@ def test_nan_heading_gives_zero_thrust_and_a_fault() -> None:
     assert r.task.fault == ""
 
 
-def test_an_invalid_estimate_gives_zero_thrust_at_once() -> None:
-    r = Rig()
-    r.directive(0.0, Mode.LINES, mission=LINES)
-    r.sensors(0.0, valid=False)
-    a = r.task.tick(0.0)
-    assert (a.u1, a.u2) == (0.0, 0.0)
-    assert r.task.reason == "not driving: position estimate invalid"
-    r.sensors(0.05, valid=True)
-    assert r.task.tick(0.05).u1 != 0.0
+def test_an_invalid_estimate_gives_zero_thrust_at_once_until_healthy_for_clear_after_s(
+        ) -> None:
+    """Zero at the first tick the estimate is invalid, and, once it is valid again,
+    until it has been healthy for failsafe.clear_after_s (the condition latches)."""
+    for wait in (0.5, 2.0, 3.7):
+        r = Rig()
+        r.task.cfg.failsafe.clear_after_s = wait
+        r.directive(0.0, Mode.LINES, mission=LINES)
+        r.sensors(0.0, valid=False)
+        a = r.task.tick(0.0)
+        assert (a.u1, a.u2) == (0.0, 0.0)
+        assert r.task.reason == "not driving: position estimate invalid"
+        ticks = [round(0.05 * k, 2) for k in range(1, int((wait + 0.5) / 0.05))]
+        for t in ticks:
+            r.directive(t, Mode.LINES, mission=LINES)
+            r.sensors(t, valid=True)
+            a = r.task.tick(t)
+            if t < wait:
+                assert (a.u1, a.u2) == (0.0, 0.0), (wait, t)
+                assert "position estimate invalid; healthy for" in r.task.reason
+            else:
+                assert a.u1 != 0.0, (wait, t, r.task.reason)
 
 
 def test_a_stale_directive_counts_as_idle() -> None:
@@ -237,3 +250,48 @@ def test_the_interlock_stops_every_mode_while_driving_is_unsafe() -> None:
                 else:
                     assert (a.u1, a.u2) == (0.0, 0.0), (mode, what)
                     assert why in r.task.reason, (mode, what, r.task.reason)
+
+
+def test_the_interlock_holds_until_healthy_for_clear_after_s_and_a_flap_restarts_it() -> None:
+    """A thruster controller that answers now and then: zero from the first silent
+    tick, through every short answer, until it has answered for clear_after_s."""
+    fs = RuntimeConfig().failsafe
+    r = Rig()
+    r.directive(0.0, Mode.LINES, mission=LINES)
+    answers = {0.0} | {round(0.05 * k, 2) for k in range(38, 44)} \
+        | {round(0.05 * k, 2) for k in range(60, 200)}  # silent 0.05-1.9 s and 2.2-3.0 s
+    last_unsafe = -math.inf
+    for k in range(200):
+        t = round(0.05 * k, 2)
+        r.directive(t, Mode.LINES, mission=LINES)
+        r.sensors(t, status=t in answers)
+        a = r.task.tick(t)
+        # the controller's last answer is more than thruster_silent_s old
+        last = max(x for x in answers if x <= t)
+        if t - last > fs.thruster_silent_s:
+            last_unsafe = t
+        if t - last_unsafe < fs.clear_after_s:
+            assert (a.u1, a.u2) == (0.0, 0.0), (t, r.task.reason)
+        else:
+            assert a.u1 != 0.0, (t, r.task.reason)
+    assert last_unsafe > 2.2 and 9.9 - last_unsafe > fs.clear_after_s  # it did let go
+
+
+def test_a_driving_failsafe_in_the_directive_gives_zero_thrust_until_it_clears() -> None:
+    """The supervisor's latch: while the directive carries a driving failsafe, zero
+    thrust in every mode though every sensor is healthy; thrust once it is gone."""
+    for mode, kw in ((Mode.LINES, {"mission": LINES}), (Mode.MANUAL, {}),
+                     (Mode.HOLD, {"point": (50.0, 0.0)}),
+                     (Mode.RETURN, {"point": (-50.0, 0.0)})):
+        for held in (("thruster_silent",), ("heading_lost", "position_lost")):
+            r = Rig()
+            r.directive(0.0, mode, driving_failsafes=held, **kw)
+            r.bus.publish(ManualThrust(0.01, 50.0, 50.0, until=5.0))
+            r.sensors(0.05)
+            a = r.task.tick(0.05)
+            assert (a.u1, a.u2) == (0.0, 0.0), (mode, held)
+            assert r.task.reason == f"not driving: failsafe {', '.join(held)} until it clears"
+            r.directive(0.06, mode, **kw)  # cleared: the same directive, republished
+            r.sensors(0.1)
+            a = r.task.tick(0.1)
+            assert (a.u1, a.u2) != (0.0, 0.0), (mode, held, r.task.reason)

@@ -159,9 +159,15 @@ def test_corrections_from_file_tcp_and_ntrip_reach_the_gps(tmp_path: Path) -> No
                 os.close(master)
                 os.close(slave)
             assert r.returncode == 0, r.stdout + r.stderr
-            assert "12 frames" in r.stdout, r.stdout
-            c = _wait_frames(obs, n + 12)
-            assert c["rtcm_frames"] == n + 12
+            # pyserial flushes the port's input as the last step of opening it, after
+            # the descriptor is open: on a loaded machine the first frame can land
+            # before that flush and go, as it would on a real port
+            m = re.search(r"rtcm (\d+) frames", r.stdout)
+            assert m is not None and 11 <= int(m.group(1)) <= 12, r.stdout
+            k = int(m.group(1))
+            assert f"types 1005×{k}" in r.stdout, r.stdout
+            c = _wait_frames(obs, n + k)
+            assert c["rtcm_frames"] == n + k
             # NTRIP credentials on the command line are refused
             r = shore("rtcm", f"ntrip://base:pw@127.0.0.1:{caster.port}/ZARCO0", env=env)
             assert r.returncode == 2 and "not on the command line" in r.stderr

@@ -32,6 +32,7 @@ from zarco_core.messages import (
     VesselStatus,
 )
 from zarco_runtime.settings import RuntimeConfig
+from zarco_runtime.supervision import arming, command_handlers
 from zarco_runtime.supervision.local import LocalCommands
 from zarco_runtime.supervision.params import NAMES, ParamRefused, apply, param_table
 from zarco_runtime.supervision.state_file import SavedMission, StateFile
@@ -194,7 +195,8 @@ def test_hostile_payloads_get_one_refusal_each_and_restart_nothing(name: str,
     _run(body)
 
 
-def test_an_error_while_handling_is_a_refusal_and_a_fault_not_a_restart() -> None:
+def test_an_error_while_handling_is_a_refusal_and_a_fault_not_a_restart(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     async def body(r: Rig) -> None:
         r.healthy()
         assert (await r.send("arm")).ok
@@ -202,7 +204,7 @@ def test_an_error_while_handling_is_a_refusal_and_a_fault_not_a_restart() -> Non
         def broken(*_a: object) -> str:
             raise OverflowError("int too large to convert to float")
 
-        r.sup._mode = broken  # type: ignore[method-assign,assignment]
+        monkeypatch.setattr(command_handlers, "mode", broken)
         a = await r.send("mode", {"mode": "hold"})
         assert not a.ok and a.reason == "not handled: internal error (OverflowError)"
         assert r.faults and "OverflowError" in r.faults[-1].reason
@@ -213,7 +215,7 @@ def test_an_error_while_handling_is_a_refusal_and_a_fault_not_a_restart() -> Non
         def broken_stop(*_a: object) -> None:
             raise RuntimeError("bug in stop")
 
-        r.sup._disarm = broken_stop  # type: ignore[method-assign,assignment]
+        monkeypatch.setattr(arming, "disarm", broken_stop)
         s = await r.send("stop")
         assert s.ok and not r.sup.armed and r.sup.mode.value == "idle"  # stop still stops
         assert r.sup.directive.armed is False
@@ -282,6 +284,54 @@ def test_arming_is_published_to_the_control_loop_and_the_status() -> None:
         assert (await r.send("disarm")).ok
         assert not r.sup.directive.armed
     _run(body)
+
+
+@pytest.mark.parametrize("action", ["continue", "hold"])
+def test_a_driving_failsafe_is_published_to_the_control_loop_until_it_clears(
+        action: str) -> None:
+    """From a driving failsafe's entry until it clears (clear_after_s of health,
+    not the moment its condition ends) the directive carries it, whatever the
+    action: continue keeps the mode, hold changes it; both hold the thrust."""
+    cfg = RuntimeConfig()
+    cfg.failsafe.thruster_silent = action
+    cfg.failsafe.clear_after_s = 1.5
+
+    async def body(r: Rig) -> None:
+        r.healthy()
+        assert (await r.send("arm")).ok and (await r.send("mode", {"mode": "manual"})).ok
+        seq = r.sup.directive.seq
+        seen: list[tuple[float, tuple[str, ...], str]] = []
+
+        async def tick(answer: bool) -> None:
+            await asyncio.sleep(0.05)
+            t = r.clock.now()
+            r.bus.publish(Heading(t, "compass", "HDT", 0.0, True, 0.0))
+            if answer:
+                r.bus.publish(ThrusterStatus(t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+            r.bus.publish(NavState(t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 41.0, -8.0,
+                                   FixQuality.RTK_FIXED, True, True, (), 0.0))
+            r.sup.evaluate(t)
+            d = r.sup.directive
+            seen.append((t, d.driving_failsafes, d.mode.value))
+
+        t0 = r.clock.now()
+        for _ in range(20):  # silent for 1 s
+            await tick(False)
+        t_back = r.clock.now()
+        for _ in range(50):  # answering again for 2.5 s
+            await tick(True)
+        lim = r.cfg.failsafe.thruster_silent_s
+        held = [t for t, fs, _ in seen if fs == ("thruster_silent",)]
+        assert held and t0 + lim < held[0] <= t0 + lim + 0.1, held[:2]
+        assert t_back + 1.5 <= held[-1] + 0.05 and held[-1] < t_back + 1.6
+        assert all(fs == () for t, fs, _ in seen if t < held[0] or t > held[-1])
+        assert r.sup.directive.armed
+        if r.cfg.failsafe.thruster_silent == "continue":
+            assert all(m == "manual" for _, _, m in seen)
+            assert r.sup.directive.seq == seq  # the same directive, republished
+        else:
+            assert all(m == ("hold" if t >= held[0] else "manual") for t, _, m in seen)
+    _run(body, cfg=cfg)
 
 
 # -------------------------------------------------------------- state file

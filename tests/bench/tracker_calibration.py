@@ -83,10 +83,12 @@ def run_one(seed: int, k: int) -> dict[str, Any]:
     late = a[a[:, 0] >= acquired + SETTLE_S] if a.size else a
     conv = [r[4] for r in rows if r[0] >= acquired + SETTLE_S]
     f = m.factors
+    net_true, net_cfg = scn.lbl.beacons, scn.runtime.tracker.network.beacons
     return {
         "seed": seed, "k": k, "family": m.family, "calibration": f["calibration"],
         "beacons": f["beacons"], "c_true": c_true,
         "c_configured": scn.runtime.tracker.network.sound_speed_mps,
+        "survey_scale_pct": survey_scale_pct(net_true, net_cfg),
         "acquired_s": acquired if math.isfinite(acquired) else None,
         "c_error_max_pct": (float(np.max(np.abs(late[:, 2] / c_true - 1.0))) * 100.0
                             if late.size else None),
@@ -96,6 +98,18 @@ def run_one(seed: int, k: int) -> dict[str, Any]:
         "pos_median_m": float(np.median(a[:, 1])) if a.size else None,
         "pos_p95_m": float(np.percentile(a[:, 1], 95)) if a.size else None,
     }
+
+
+def survey_scale_pct(true: Any, surveyed: Any) -> float:
+    """The scale (%) of the surveyed network against the true one (the
+    least-squares similarity of their horizontal positions): timings cannot
+    tell a network that much larger with sound that much faster."""
+    a = np.array([[b[0], b[1]] for b in true], dtype=float)
+    b = np.array([[q[0], q[1]] for q in surveyed], dtype=float)
+    a -= a.mean(axis=0)
+    b -= b.mean(axis=0)
+    s = np.linalg.svd(a.T @ b, compute_uv=False)
+    return float((s.sum() / (a * a).sum() - 1.0) * 100.0)
 
 
 def _pct(v: list[float], q: float) -> float | None:
@@ -138,7 +152,9 @@ def main() -> int:
             e = r["c_error_max_pct"]
             print(f"[{i:4d}/{len(jobs)} {time.monotonic() - t0:6.0f} s] seed {r['seed']} "
                   f"m{r['k']:03d} {r['family']:<16} {r['beacons']}b {r['calibration']:<12} "
-                  f"c err max {'—' if e is None else f'{e:.3f} %'}  pos p50 "
+                  f"c err max {'—' if e is None else f'{e:.3f} %'} σ {r['c_sigma_settled_mps']} "
+                  f"conv {r['converged_settled']} survey scale {r['survey_scale_pct']:+.3f} %"
+                  f"  pos p50 "
                   f"{r['pos_median_m'] or float('nan'):.2f} m p95 "
                   f"{r['pos_p95_m'] or float('nan'):.2f} m", file=sys.stderr, flush=True)
     results.sort(key=lambda r: (r["seed"], r["k"]))

@@ -9,6 +9,13 @@ checks them itself at every tick through a :class:`DriveInterlock`, so a
 command computed between two supervisor evaluations is zero as soon as a
 condition holds, not up to one evaluation later.
 
+A condition latches, here as in the failsafe table: once seen, driving stays
+unsafe until the condition has been healthy for ``failsafe.clear_after_s``, so
+a condition that flaps (a thruster controller answering now and then) gives
+no thrust between its flaps, even a flap too short for the supervisor to see.
+The supervisor's own latch (a failsafe active from its entry until it clears)
+reaches the control task with the directive (``driving_failsafes``).
+
 Times are runtime clock seconds; a reason "" means the condition does not hold.
 """
 
@@ -62,11 +69,13 @@ def thruster_silent(now: float, status_ref_t: float | None,
 
 
 class Limits(Protocol):
-    """The limits of the three conditions (s): the failsafe table's (``[failsafe]``)."""
+    """The limits of the three conditions and the time a condition must have been
+    healthy to clear (s): the failsafe table's (``[failsafe]``)."""
 
     position_lost_s: float
     heading_lost_s: float
     thruster_silent_s: float
+    clear_after_s: float
 
 
 class DriveInterlock:
@@ -75,8 +84,9 @@ class DriveInterlock:
     Its listeners note the last compass heading and thruster status (and the
     first command sent); :meth:`hazard` says why driving is unsafe now ("" when
     it is not), with the limits of the live failsafe table (a parameter change
-    applies at once).  ``thrusters``: a thruster controller is configured (else
-    its silence is no condition).
+    applies at once), latched: the last condition seen holds until it has been
+    healthy for ``clear_after_s``.  ``thrusters``: a thruster controller is
+    configured (else its silence is no condition).
     """
 
     def __init__(self, limits: Limits, thrusters: bool = True) -> None:
@@ -85,6 +95,8 @@ class DriveInterlock:
         self.last_heading_t: float | None = None
         self.last_status_t: float | None = None
         self.first_cmd_t: float | None = None
+        #: the last condition seen: (runtime time, s; its reason)
+        self.last_seen: tuple[float, str] | None = None
 
     def on_heading(self, m: Heading) -> None:
         self.last_heading_t = m.t
@@ -101,8 +113,8 @@ class DriveInterlock:
         """The thruster controller's last answer, else the first command sent."""
         return self.last_status_t if self.last_status_t is not None else self.first_cmd_t
 
-    def hazard(self, now: float, nav: NavState | None) -> str:
-        """Why nothing may drive now ("" when driving is allowed)."""
+    def condition(self, now: float, nav: NavState | None) -> str:
+        """Which of the three conditions holds now ("" when none does), unlatched."""
         lim = self.limits
         why, _ = position_lost(now, nav, lim.position_lost_s)
         if not why:
@@ -110,3 +122,18 @@ class DriveInterlock:
         if not why and self.thrusters:
             why, _ = thruster_silent(now, self.status_ref_t, lim.thruster_silent_s)
         return why
+
+    def hazard(self, now: float, nav: NavState | None) -> str:
+        """Why nothing may drive now ("" when driving is allowed): a condition that
+        holds, or the last one seen until it has been healthy for ``clear_after_s``."""
+        why = self.condition(now, nav)
+        if why:
+            self.last_seen = (now, why)
+            return why
+        if self.last_seen is not None:
+            seen_t, was = self.last_seen
+            wait = self.limits.clear_after_s
+            if now - seen_t < wait:
+                return f"{was}; healthy for {now - seen_t:.1f} s of the {wait:g} s to clear"
+            self.last_seen = None
+        return ""

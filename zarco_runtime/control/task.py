@@ -13,8 +13,11 @@ on its own, to drive on what it cannot trust: a directive older than
 ``supervisor.directive_timeout_s`` counts as ``idle``, a directive that is
 not armed gives zero thrust whatever its mode, so do a lost position, a lost
 heading and a silent thruster controller (the drive interlock,
-:mod:`.interlock`, judged at every tick with the failsafe table's limits),
-and a demand or command that is not finite becomes zero thrust and a Fault.
+:mod:`.interlock`, judged at every tick with the failsafe table's limits and
+held until healthy for ``failsafe.clear_after_s``) and a driving failsafe the
+supervisor holds (the directive's ``driving_failsafes``, from the failsafe's
+entry until it clears, whatever its action), and a demand or command that is
+not finite becomes zero thrust and a Fault.
 
 The line-tracking gains come from LQR designs cached per configuration
 (:mod:`.lqr`): a mode change takes its design from the cache; a configuration
@@ -218,6 +221,10 @@ class ControlTask:
         hazard = self.interlock.hazard(t, nav)
         if hazard:
             self.reason = f"not driving: {hazard}"
+            return ZERO
+        if d.driving_failsafes:
+            self.reason = (f"not driving: failsafe {', '.join(d.driving_failsafes)} "
+                           "until it clears")
             return ZERO
         if mode is Mode.MANUAL:
             m = self.manual.value

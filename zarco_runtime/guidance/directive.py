@@ -22,7 +22,11 @@ class Directive:
     its point (hold, return: NED metres).  ``reason`` says why (for status);
     ``since`` is when this directive was first given (``t`` is when it was last
     republished); ``armed`` whether thrust is allowed at all (a directive that
-    is not armed gives zero thrust whatever its mode)."""
+    is not armed gives zero thrust whatever its mode); ``driving_failsafes``
+    the driving failsafes active (``position_lost``, ``heading_lost``,
+    ``thruster_silent``): from a failsafe's entry until it clears (its
+    condition healthy for ``failsafe.clear_after_s``) the directive gives zero
+    thrust whatever its mode and the failsafe's action."""
 
     t: float
     seq: int
@@ -33,6 +37,7 @@ class Directive:
     reason: str = ""
     since: float = -1.0
     armed: bool = False
+    driving_failsafes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.since < 0.0:

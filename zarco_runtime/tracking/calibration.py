@@ -15,16 +15,29 @@ j's turnaround, the true ranges are::
 
 Every accepted range is one more equation between the AUV's position, k and
 the β.  With three or more beacons the ranges of a few seconds over-determine
-the position and k is observable; the listener's own cycles (r_L measured
-through τ_L) against the other cycles' r_L (through d_j) are a second lever,
-which also works with two beacons — but then only for k and β_j + β_L
-together.  With two beacons and no cycle on the listener's beacon nothing
-separates k from the position: the estimate stays at the prior, with its σ.
+the position and k is observable.  With two beacons nothing separates k from
+the position and the beacons' distance (the listener's own cycles read r_L
+through τ_L, the other cycles through d_j, but a d_j surveyed 2 m off over
+300 m is a 0.7 % scale): k stays at the prior, its σ the configured one, and
+the estimate never says converged; the β are still estimated.
+
+A beacon surveyed off its true position biases its ranges by the offset's
+component along the direction to the AUV: a bias that changes as the AUV
+moves round, which neither k nor a constant β can represent (the estimate
+was pulled up to 1 % off by it).  The third hypothesis therefore carries each
+beacon's horizontal correction δ_b = (δN_b, δE_b), prior σ
+``survey_sigma_m``: ρ_b is taken to the corrected position, and d_j in the
+listener's ranges becomes the corrected distance D_j.  The timings cannot
+tell a network scaled by s (with sound s times faster) from the true one:
+under that hypothesis k is only as good as the survey's prior allows (about
+σ_δ / (R √n) with beacons R from the AUV), and its σ says so — the estimate
+does not converge to a value the survey pulled.
 
 Each hypothesis is an extended Kalman filter, apart from the tracker's
 motion filter, on the state::
 
-    [x, y, vx, vy, k, β_0 … β_{n−1}]       NED m, m/s, 1, m
+    [x, y, vx, vy, k, β_0 … β_{n−1}, δN_0, δE_0 … δN_{n−1}, δE_{n−1}]
+                                          NED m, m/s, 1, m, m
 
 with a loose constant-velocity model (white acceleration
 ``maneuver_accel_psd``: it ties the ranges of a few seconds together, but the
@@ -33,28 +46,33 @@ position, not k), k a slow random walk
 (``sound_speed_walk_mps`` per √s, relative to c₀) about the prior
 (``sound_speed_sigma_mps``), each β a constant with prior σ
 ``range_bias_sigma_m``.  Each range the tracker accepted is one scalar update
-with its nominal range m predicted as m̂ = (ρ_b + s β_j − d)/k + d (ρ_b the
-3-D range from the range's beacon b to the AUV at its known depth; s = +1,
-d = 0 for a range to the cycle's beacon, s = −1, d = d_j for the listener's),
+with its nominal range m predicted as m̂ = (ρ_b + s β_j − D)/k + d (ρ_b the
+3-D range from the range's beacon b, corrected, to the AUV at its known depth;
+s = +1, D = d = 0 for a range to the cycle's beacon, s = −1, D = D_j and
+d = d_j as configured for the listener's),
 gated at ``CAL_GATE_CHI2`` and down-weighted beyond ``soft_gate_chi2`` as the
 motion filter is.  Each range enters once: no information is counted twice.
 
 The biases make k slow to observe (a bias on every beacon looks much like a
-scale while the geometry changes little), and they are usually absent.  Two
+scale while the geometry changes little), and they are usually absent.  Three
 hypotheses therefore run side by side, :class:`SoundSpeedEstimator`: the
-turnarounds as configured (no β) and the turnarounds uncertain (β with prior
-σ ``range_bias_sigma_m``); their innovation likelihoods (each d² capped at
+network as configured (no β, no δ), the turnarounds uncertain (β with prior σ
+``range_bias_sigma_m``), and the survey and turnarounds uncertain (β and δ;
+three beacons or more); their innovation likelihoods (each d² capped at
 ``LIKELIHOOD_CAP_CHI2``: one outlier decides nothing) are summed, and the
 estimate reported is the more likely hypothesis's, once it leads by
 ``SWITCH_NATS`` (a turnaround off by 1 ms shows within a minute or two; a
-hypothesis with biases it does not need loses slowly, by the price of its
-broader prior).  ``range_bias_sigma_m = 0`` keeps only the first.
+hypothesis with corrections it does not need loses slowly, by the price of its
+broader prior).  ``range_bias_sigma_m = 0`` and ``survey_sigma_m = 0`` drop
+theirs.
 
 The kinematic part starts from the motion filter's state (and again after a
 re-acquisition); k and the β carry over.
 
-Reported: the sound speed ĉ = k c₀ (m/s), its σ (m/s), and ``converged``
-when σ is at most ``sound_speed_converged_mps``.
+Reported: the sound speed ĉ = k c₀ (m/s) of the reported hypothesis, its σ
+(m/s) about ĉ over the hypotheses weighted by their likelihoods (a rival that
+is still in the running and puts c elsewhere widens it), and ``converged``
+when σ is at most ``sound_speed_converged_mps`` (never with two beacons).
 """
 
 from __future__ import annotations
@@ -80,22 +98,29 @@ K = 4
 class Calibration:
     """One hypothesis: EKF on [x, y, vx, vy, k, β…] (module docstring)."""
 
-    __slots__ = ("P", "_dz", "_q_k", "c0", "initialised", "loglik", "n", "net0", "p",
-                 "refused", "t", "updates", "x")
+    __slots__ = ("P", "_dz", "_q_k", "c0", "initialised", "loglik", "n", "name", "net0",
+                 "p", "refused", "t", "updates", "x")
 
-    def __init__(self, params: TrackerParams, net0: Network, bias_sigma_m: float) -> None:
+    def __init__(self, params: TrackerParams, net0: Network, bias_sigma_m: float,
+                 survey_sigma_m: float = 0.0, name: str = "") -> None:
         self.p = params
         self.net0 = net0
         self.c0 = net0.c
         self.n = net0.n
-        n = KIN + 1 + self.n
+        #: what the hypothesis questions ("" the configured network as exact)
+        self.name = name
+        n = KIN + 1 + 3 * self.n
         self.x = np.zeros(n)
         self.x[K] = 1.0
         self.P = np.zeros((n, n))
-        self.P[K, K] = (params.sound_speed_sigma_mps / self.c0) ** 2
+        observable = self.n >= 3
+        if observable:  # two beacons: the sound speed is not observable, k stays 1
+            self.P[K, K] = (params.sound_speed_sigma_mps / self.c0) ** 2
         for j in range(self.n):
             self.P[K + 1 + j, K + 1 + j] = bias_sigma_m ** 2
-        self._q_k = (params.sound_speed_walk_mps / self.c0) ** 2
+            self.P[self._dn(j), self._dn(j)] = survey_sigma_m ** 2
+            self.P[self._dn(j) + 1, self._dn(j) + 1] = survey_sigma_m ** 2
+        self._q_k = (params.sound_speed_walk_mps / self.c0) ** 2 if observable else 0.0
         self._dz = tuple(params.auv_depth_m - z for z in net0.depth)
         self.t = 0.0
         self.initialised = False
@@ -120,6 +145,15 @@ class Calibration:
     def bias(self, j: int) -> float:
         """Estimated range bias β_j of beacon index ``j`` (m)."""
         return float(self.x[K + 1 + j])
+
+    def _dn(self, j: int) -> int:
+        """State index of beacon index ``j``'s survey correction δN_j (δE_j next)."""
+        return KIN + 1 + self.n + 2 * j
+
+    def offset(self, j: int) -> tuple[float, float]:
+        """Estimated survey correction (δN, δE) of beacon index ``j`` (m)."""
+        i = self._dn(j)
+        return float(self.x[i]), float(self.x[i + 1])
 
     # ------------------------------------------------------------ filter
 
@@ -164,23 +198,41 @@ class Calibration:
 
     def update(self, b: int, j: int, s: float, d: float, m: float, var: float) -> bool:
         """One scalar update with the nominal range ``m`` (m, variance ``var``
-        m²) predicted as m̂ = (ρ_b + s β_j − d)/k + d; False when gated.  (The
-        prediction depends on the state alone: a Jacobian taken on the noisy
-        measurement would bias k.)"""
+        m²) predicted as m̂ = (ρ_b + s β_j − D)/k + d, ρ_b to beacon b at its
+        corrected position, D = 0 for a range to the cycle's beacon (s = +1,
+        d = 0) and the corrected distance D_j from beacon j to the listener for
+        the listener's (s = −1, d = d_j as configured); False when gated.
+        (The prediction depends on the state alone: a Jacobian taken on the
+        noisy measurement would bias k.)"""
         net = self.net0
         x, P = self.x, self.P
-        dx = x[0] - net.north[b]
-        dy = x[1] - net.east[b]
+        ib_n = self._dn(b)
+        dx = x[0] - net.north[b] - x[ib_n]
+        dy = x[1] - net.east[b] - x[ib_n + 1]
         dz = self._dz[b]
         rho = math.sqrt(dx * dx + dy * dy + dz * dz)
         k = float(x[K])
         if rho < 1e-6 or k <= 0.0:
             return False
         ib = K + 1 + j
-        u = rho + s * x[ib] - d
         H = np.zeros(x.size)
+        u = rho + s * x[ib]
+        if s < 0.0:  # the reply travelled from beacon j to the listener b
+            jn = self._dn(j)
+            gx = net.north[j] + x[jn] - net.north[b] - x[ib_n]
+            gy = net.east[j] + x[jn + 1] - net.east[b] - x[ib_n + 1]
+            gz = net.depth[j] - net.depth[b]
+            big_d = math.sqrt(gx * gx + gy * gy + gz * gz)
+            if big_d > 1e-6:
+                u -= big_d
+                H[jn] -= gx / (big_d * k)
+                H[jn + 1] -= gy / (big_d * k)
+                H[ib_n] += gx / (big_d * k)
+                H[ib_n + 1] += gy / (big_d * k)
         H[0] = dx / (rho * k)
         H[1] = dy / (rho * k)
+        H[ib_n] -= dx / (rho * k)
+        H[ib_n + 1] -= dy / (rho * k)
         H[K] = -u / (k * k)
         H[ib] = s / k
         PH = P @ H
@@ -206,8 +258,8 @@ class Calibration:
 
 
 class SoundSpeedEstimator:
-    """The two hypotheses (turnarounds as configured, turnarounds uncertain)
-    and the one reported (module docstring)."""
+    """The hypotheses (network as configured, turnarounds uncertain, survey
+    and turnarounds uncertain) and the one reported (module docstring)."""
 
     __slots__ = ("best", "models", "net0", "p")
 
@@ -216,9 +268,20 @@ class SoundSpeedEstimator:
         self.net0 = net0
         self.models = [Calibration(params, net0, 0.0)]
         if params.range_bias_sigma_m > 0.0:
-            self.models.append(Calibration(params, net0, params.range_bias_sigma_m))
+            self.models.append(Calibration(params, net0, params.range_bias_sigma_m,
+                                           name="turnarounds"))
+        if params.survey_sigma_m > 0.0 and self.observable:
+            self.models.append(Calibration(params, net0, params.range_bias_sigma_m,
+                                           params.survey_sigma_m, name="survey"))
         #: the hypothesis reported
         self.best = self.models[0]
+
+    @property
+    def observable(self) -> bool:
+        """Three beacons or more: the ranges tell the sound speed (with two,
+        nothing separates it from the AUV's position and the beacons' distance:
+        the prior is kept)."""
+        return self.net0.n >= 3
 
     @property
     def initialised(self) -> bool:
@@ -231,13 +294,33 @@ class SoundSpeedEstimator:
 
     @property
     def sound_speed_sigma_mps(self) -> float:
-        """1σ of ĉ (m/s)."""
-        return self.best.sound_speed_sigma_mps
+        """1σ of ĉ (m/s; the configured uncertainty when not observable)."""
+        if not self.observable:
+            return self.p.sound_speed_sigma_mps
+        # about the reported estimate, over the hypotheses weighted by their
+        # likelihoods: a rival still in the running that puts the sound speed
+        # elsewhere widens it
+        c = self.best.sound_speed_mps
+        top = max(m.loglik for m in self.models)
+        w_sum = var = 0.0
+        for m in self.models:
+            w = math.exp(m.loglik - top)
+            w_sum += w
+            var += w * (m.sound_speed_sigma_mps ** 2 + (m.sound_speed_mps - c) ** 2)
+        return math.sqrt(var / w_sum)
 
     @property
     def converged(self) -> bool:
-        """σ of ĉ at most ``sound_speed_converged_mps``."""
-        return self.sound_speed_sigma_mps <= self.p.sound_speed_converged_mps
+        """Observable, and σ of ĉ at most ``sound_speed_converged_mps``."""
+        return self.observable and (self.sound_speed_sigma_mps
+                                    <= self.p.sound_speed_converged_mps)
+
+    @property
+    def hypothesis(self) -> str:
+        """What the reported hypothesis questions: "" (nothing: the network as
+        configured), "turnarounds" or "survey" (the beacons' positions and
+        turnarounds)."""
+        return self.best.name
 
     @property
     def biased(self) -> bool:

@@ -173,6 +173,10 @@ class TrackerParams:
     range_bias_sigma_m: float = spec(1.0, "m", "1σ prior of each beacon's range bias (a "
                                      "turnaround error of 1 ms is 0.75 m; 0: no bias "
                                      "estimated)", min=0.0, max=100.0)
+    survey_sigma_m: float = spec(1.0, "m", "1σ (each horizontal axis) of every beacon's "
+                                 "surveyed position: a third explanation of the ranges, the "
+                                 "beacons a little off their survey (0: the survey is taken "
+                                 "as exact)", min=0.0, max=100.0)
     clock_tol_s: float = spec(2.0, "s", "an event whose runtime-minus-UTC time differs "
                               "from the running estimate by more than this is refused "
                               "(`clock`), unless 5 in a row agree (the clock jumped)",
