@@ -182,6 +182,10 @@ def test_above_an_auv_waiting_on_its_plan_the_boat_ahead_on_its_first_leg_waits(
         assert st.leg is not None, (x, y)
         err = math.remainder(st.leg.course_rad - math.atan2(-y, -x), math.tau)
         assert err == pytest.approx(0.0, abs=1e-6)
+    # the tracker's match to the plan flickers off for a moment: still waiting
+    off = dataclasses.replace(still, plan_leg=-1, t=still.t + 2.0, t0=still.t + 2.0)
+    st = g.update(off, off.t, 4.0, 0.5)
+    assert st.leg is None and st.heading_rad == pytest.approx(0.0)
 
 
 def test_an_auv_starting_off_is_gone_after_at_its_speed_without_waiting_for_its_track() -> None:

@@ -93,6 +93,9 @@ PLAN_AFTER_CORNER_S = 20.0
 #: above an AUV waiting on its plan, the boat this far ahead of it on its first
 #: leg (m, within the hold radius of the leg) waits there for it
 ABOVE_AHEAD_M = 5.0
+#: above a still AUV, its plan's course is kept this long (s) after its track
+#: was last on the plan
+PLAN_COURSE_HOLD_S = 10.0
 #: length of the virtual leg laid past the aim point (m)
 LEG_PAST_AIM_M = 100.0
 #: the paper law's leg starts this far behind the AUV and ends this far ahead (m)
@@ -149,6 +152,8 @@ class FollowGuidance:
         self._plan_msg: AuvPlan | None = None
         self._sm_plan: tuple[float, float, float] | None = None
         self._plan_leg_id = -1
+        #: when (s) the AUV was last followed on its plan, and the plan's course there
+        self._plan_course: tuple[float, float] | None = None
 
     def _lost_reason(self, track: AuvTrack | None, t: float) -> str:
         if track is None:
@@ -179,6 +184,7 @@ class FollowGuidance:
         path: StraightPath | PlanPath
         if on_plan is not None:
             tg, path = on_plan
+            self._plan_course = (t, path.course_at(0.0))
         else:
             tg = self._smooth(tg, t)
             path = StraightPath(tg)
@@ -218,8 +224,13 @@ class FollowGuidance:
                 or ((far or self._was_above) and sigma <= cfg.max_pos_sigma_m))
             if not settled:
                 return self._hold(x, y, "AUV (nearly) still, track settling")
-            return self._above(tg, t, x, y, path.course_at(0.0) if on_plan is not None
-                               else math.nan)
+            # on its plan, the course it will leave on — also for a moment after
+            # the tracker's match of a hovering AUV to its plan flickers off
+            pc = self._plan_course
+            course = (path.course_at(0.0) if on_plan is not None
+                      else pc[1] if self.plan is not None and pc is not None
+                      and t - pc[0] <= PLAN_COURSE_HOLD_S else math.nan)
+            return self._above(tg, t, x, y, course)
         self.hold = None
         self.mode = "follow"
         if cfg.law == "paper":
@@ -309,6 +320,7 @@ class FollowGuidance:
             return
         self._plan_msg = msg
         self._sm_plan = None
+        self._plan_course = None
         self.plan = None
         if msg is not None and msg.points:
             try:
