@@ -4,7 +4,9 @@ station on loopback UDP, for the endpoint's tests.
 ``run_rig(cfg, gcs)`` builds the endpoint on ``cfg`` (its ``url`` pointed at
 the ground station), runs the loop in this thread and ``gcs(rig)`` on another;
 ``rig.on_loop(fn)`` runs ``fn`` on the loop (the bus is not thread-safe) and
-``rig.seen`` holds what was published on the bus."""
+``rig.seen`` holds what was published on the bus.  There is no supervisor:
+``run_rig`` publishes one status as a supervisor would at boot (idle,
+disarmed), without which the boat sends no heartbeat, unless told not to."""
 
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ from pymavlink.dialects.v20 import common as mav
 from zarco_core.bus import Bus
 from zarco_core.clock import Clock
 from zarco_core.component import ComponentContext
+from zarco_core.messages import MissionProgress, VesselStatus
 from zarco_runtime.links.mavlink.endpoint import MavlinkEndpoint
 from zarco_runtime.settings import RuntimeConfig
 
@@ -112,14 +115,24 @@ async def _call(fn: Callable[[], Any]) -> Any:
     return fn()
 
 
+def boot_status(now: float, home: tuple[float, float] | None = None) -> VesselStatus:
+    """A supervisor's status at boot: idle, disarmed, no failsafe; ``home``
+    (lat, lon degrees) or not known yet."""
+    lat, lon = home if home is not None else (None, None)
+    return VesselStatus(now, time.time(), "idle", False, MissionProgress(), [], {}, {}, {},
+                        home_lat_deg=lat, home_lon_deg=lon)
+
+
 def run_rig(cfg: RuntimeConfig, gcs: Callable[[Rig], None],
             watch: tuple[type, ...] = (),
-            setup: Callable[[Bus, Clock], None] | None = None) -> Rig:
+            setup: Callable[[Bus, Clock], None] | None = None,
+            status: bool = True) -> Rig:
     """Run the endpoint on ``cfg`` while ``gcs(rig)`` runs on a thread; the
     messages of the types in ``watch`` published meanwhile are in ``rig.seen``.
     ``setup(bus, clock)`` runs on the loop before the endpoint is built (to add
-    other parts on the bus: a stand-in supervisor, say).  The endpoint must
-    still run at the end (no failure, no restart)."""
+    other parts on the bus: a stand-in supervisor, say); ``status``: publish
+    :func:`boot_status` once the endpoint is built.  The endpoint must still
+    run at the end (no failure, no restart)."""
     bus = Bus()
     clock = Clock()
     seen: dict[type, list[Any]] = {k: [] for k in watch}
@@ -132,6 +145,8 @@ def run_rig(cfg: RuntimeConfig, gcs: Callable[[Rig], None],
             setup(bus, clock)
         ctx = ComponentContext("mavlink", bus, clock)
         ep = MavlinkEndpoint(cfg, bus, clock, ctx)
+        if status:
+            bus.publish(boot_status(clock.now()))
         rig = Rig(cfg, bus, clock, asyncio.get_running_loop(), ep, seen)
         out.append(rig)
         task = asyncio.ensure_future(ctx.run(ep.run()))

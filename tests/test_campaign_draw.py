@@ -12,11 +12,13 @@ from typing import Any
 
 import pytest
 
+from drivers.sim.params import ThrusterParams
+from drivers.sim.thruster_model import U_MAX, thruster_thrust
 from zarco_core.config import ConfigError, parse_override
 from zarco_tools.campaign.draw import draw_mission
 from zarco_tools.campaign.follow_judge import judge_follow
-from zarco_tools.campaign.physics import survey_scale_pct
-from zarco_tools.campaign.spec import load_spec
+from zarco_tools.campaign.physics import straight_thrust, survey_scale_pct
+from zarco_tools.campaign.spec import load_spec, parse_choice, with_choices
 
 ROOT = Path(__file__).resolve().parents[1]
 FOLLOW = ROOT / "config" / "campaigns" / "follow.toml"
@@ -87,12 +89,17 @@ def test_tight_lawnmowers_arcs_and_spirals_have_their_geometry(drawn: list[Any])
     for m in drawn:
         s = sets(m.overrides)
         wps = s["auv.waypoints"]
+        if m.factors["plan"] == "adaptive":  # an adaptive AUV leaves its route part-way
+            if m.family != "tight_lawnmower":
+                continue
+            wps = s["mission.auv_plan"]  # the route as planned
         legs = [math.dist(a, b) for a, b in itertools.pairwise(wps)]
         if m.family == "tight_lawnmower":
             long, short = legs[0::2], legs[1::2]
             assert all(40.0 - 0.2 <= x <= 80.0 + 0.2 for x in long)
             assert all(10.0 - 0.2 <= x <= 20.0 + 0.2 for x in short)
-            assert all(abs(abs(a) - 90) <= 1 for a in m.factors["planned_turns_deg"])
+            if m.factors["plan"] != "adaptive":  # the turns the AUV flies
+                assert all(abs(abs(a) - 90) <= 1 for a in m.factors["planned_turns_deg"])
         elif m.family == "arcs":
             arcs = s["auv.arcs"]
             assert len(arcs) == len(wps) - 2
@@ -104,6 +111,67 @@ def test_tight_lawnmowers_arcs_and_spirals_have_their_geometry(drawn: list[Any])
             assert 10.0 <= g <= 25.0
         else:
             assert s["auv.arcs"] == []
+
+
+def test_plans_are_the_route_or_left_part_way_along_a_leg(drawn: list[Any]) -> None:
+    kinds = {"none": 0, "plan": 0, "adaptive": 0}
+    for m in drawn:
+        s = sets(m.overrides)
+        kind = m.factors["plan"]
+        kinds[kind] += 1
+        wps = s["auv.waypoints"]
+        if kind == "none":
+            assert "mission.auv_plan" not in s
+            continue
+        plan = s["mission.auv_plan"]
+        if kind == "plan":
+            if s["auv.arcs"]:  # the arcs sampled: every waypoint is a point of the plan
+                assert all(w in plan for w in wps) and len(plan) > len(wps)
+            else:
+                assert plan == wps
+            continue
+        # adaptive: the plan's first legs, then part-way along the next one the AUV
+        # turns off it by 60–150° onto legs of its own (checked on the routes of
+        # straight legs, where the plan is the waypoints)
+        if m.factors["route"] not in ("lawnmower", "random"):
+            continue
+        j = next(i for i, (a, b) in enumerate(zip(wps, plan, strict=False)) if a != b)
+        assert j >= 2 and wps[:j] == plan[:j]
+        a, b, p = plan[j - 1], plan[j], wps[j]
+        frac = math.dist(a, p) / math.dist(a, b)
+        assert 0.3 - 0.01 <= frac <= 0.7 + 0.01
+        assert abs((p[0] - a[0]) * (b[1] - a[1]) - (p[1] - a[1]) * (b[0] - a[0])) \
+            <= 0.2 * math.dist(a, b)  # on the leg (to the waypoints' rounding)
+        c_plan = math.atan2(b[1] - a[1], b[0] - a[0])
+        q = wps[j + 1]
+        c_own = math.atan2(q[1] - p[1], q[0] - p[0])
+        turn = abs(math.degrees(math.remainder(c_own - c_plan, math.tau)))
+        assert 60.0 - 1.0 <= turn <= 150.0 + 1.0
+    # none = 2, plan = 1, adaptive = 1
+    assert kinds["none"] > kinds["plan"] > 0 and kinds["none"] > kinds["adaptive"] > 0
+
+
+def test_a_choice_redrawn_keeps_every_other_draw_of_the_missions(spec: Any) -> None:
+    with_plan = with_choices(spec, dict([parse_choice("plan=plan", "follow")]))
+    without = with_choices(spec, dict([parse_choice("plan = none", "follow")]))
+    for k in range(40):
+        a, b = draw_mission(with_plan, 5, k), draw_mission(without, 5, k)
+        assert a.factors["plan"] == "plan" and b.factors["plan"] == "none"
+        assert [o for o in a.overrides if not o.startswith("mission.auv_plan=")] \
+            == b.overrides and len(a.overrides) == len(b.overrides) + 1
+        assert a.scenario_seed == b.scenario_seed
+    weights = parse_choice("plan=none:2,adaptive", "follow")
+    assert weights == ("plan", {"none": 2.0, "adaptive": 1.0})
+
+
+@pytest.mark.parametrize(("text", "why"), [
+    ("plan", "NAME=VALUE"), ("route=lawnmower", "NAME=VALUE"),
+    ("plan=sometimes", "unknown"), ("plan=plan:x", "not a number"),
+    ("plan=plan:-1", "≥ 0"), ("plan=plan:0", "add up to 0")])
+def test_a_bad_choice_is_refused_with_the_reason(text: str, why: str) -> None:
+    with pytest.raises(ConfigError) as e:
+        parse_choice(text, "follow")
+    assert why in str(e.value)
 
 
 def test_two_beacon_routes_keep_to_one_side_of_the_baseline(drawn: list[Any]) -> None:
@@ -243,3 +311,17 @@ def test_a_survey_whose_own_scale_is_off_makes_the_sound_speed_unobservable() ->
 def test_nan_in_a_report_fails_the_json_check() -> None:
     j = judge_follow(TARGETS, FACT, report(track_error_rms_m=float("nan")))
     assert "json" in j.fails
+
+
+@pytest.mark.parametrize("mismatch", [-0.1, 0.0, 0.06])
+def test_the_closing_speed_counts_only_the_thrust_a_boat_going_straight_has(
+        mismatch: float) -> None:
+    """With the simulated thrusters' mismatch (one stronger than the other) a
+    boat going straight holds the stronger back to the weaker's full thrust:
+    that, not the two full thrusts, is its top speed."""
+    p = ThrusterParams(mismatch=mismatch)
+    f1, f2 = thruster_thrust(U_MAX, p, 1), thruster_thrust(U_MAX, p, 2)
+    assert straight_thrust(p.fwd_max_n, mismatch, 0.0, 0.0) == pytest.approx(2.0 * min(f1, f2))
+    assert straight_thrust(p.fwd_max_n, mismatch, 3.0, -2.0) < 2.0 * min(f1, f2)
+    if mismatch:
+        assert straight_thrust(p.fwd_max_n, mismatch, 0.0, 0.0) < f1 + f2

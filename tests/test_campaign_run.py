@@ -131,6 +131,26 @@ def test_a_directory_of_another_campaign_is_refused(pool: Path) -> None:
     assert len(lines(pool)) == 4
 
 
+def test_a_choice_runs_the_same_missions_with_that_category_and_is_recorded(
+        pool: Path, tmp_path: Path) -> None:
+    # the pool's directory holds the spec's draws: another choice is another campaign
+    rc = zarco(["campaign", SPEC, "--n", "4", "--seed", "5", "--jobs", "1", "--out", str(pool),
+                "--no-plots", "--choice", "plan=plan", *SHORT])
+    assert rc == 2 and len(lines(pool)) == 4
+    out = tmp_path / "planned"
+    assert zarco(["campaign", SPEC, "--n", "1", "--seed", "5", "--jobs", "1", "--out", str(out),
+                  "--no-plots", "--choice", "plan=plan", *SHORT]) == 0
+    (rec,) = lines(out)
+    assert rec["factors"]["plan"] == "plan"
+    assert any(o.startswith("mission.auv_plan=") for o in rec["overrides"])
+    base = next(r for r in lines(pool) if r["index"] == 0)
+    assert [o for o in rec["overrides"] if not o.startswith("mission.auv_plan=")] == [
+        o for o in base["overrides"] if not o.startswith("mission.auv_plan=")]
+    header = json.loads((out / "campaign.json").read_text())
+    assert header["choices"] == {"plan": {"plan": 1.0}}
+    assert zarco(["campaign", SPEC, "--choice", "plan=maybe", "--out", str(tmp_path / "x")]) == 2
+
+
 def test_a_line_cut_short_by_a_kill_is_dropped_and_its_mission_run_again(
         tmp_path: Path) -> None:
     rec = {"index": 0, "family": "x", "overrides": [], "figures": {}, "fails": {}}

@@ -195,6 +195,22 @@ def test_outputs_of_zarco_log(recording: Path, files: Path,
     (files / "taken.mcap").write_bytes(b"mine")
     refused(capsys, ["log", "fix", rec, "-o", str(files / "taken.mcap")], "already exists")
     assert (files / "taken.mcap").read_bytes() == b"mine"
+    refused(capsys, ["campaign", str(ROOT / "config" / "campaigns" / "hold.toml"), "--n", "1",
+                     "--out", str(files / "nodir" / "camp")], "--out", "does not exist")
+    assert not (files / "nodir").exists()
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full here")
+def test_an_export_onto_a_full_disk(recording: Path,
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """/dev/full: every write fails with ENOSPC, as on a full disk: one line, exit 1."""
+    capsys.readouterr()
+    assert main(["log", "export", str(recording), "--topic", "/NavState",
+                 "-o", "/dev/full"]) == 1
+    cap = capsys.readouterr()
+    lines = [ln for ln in cap.err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "/dev/full" in lines[0] and "Traceback" not in cap.err, cap.err
+    assert os.path.exists("/dev/full")
 
 
 def test_shore_console_files(files: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -11,9 +11,11 @@ import contextlib
 import json
 import math
 import tempfile
+from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -49,7 +51,11 @@ lines = st.one_of(
 )
 
 
-async def _exchange(sent: list[bytes]) -> tuple[list[Any], ComponentContext, list[ManualThrust]]:
+@contextlib.asynccontextmanager
+async def _served() -> AsyncIterator[tuple[str, ComponentContext, list[ManualThrust]]]:
+    """A supervisor with a valid position, heading and thruster controller, behind
+    its control socket: (the socket's path, the supervisor's context, the manual
+    thrust it let through)."""
     bus, clock = Bus(), Clock()
     ctx = ComponentContext("supervisor", bus, clock)
     sup = Supervisor(RuntimeConfig(), bus, clock, ctx)
@@ -69,6 +75,16 @@ async def _exchange(sent: list[bytes]) -> tuple[list[Any], ComponentContext, lis
             if Path(path).exists():
                 break
             await asyncio.sleep(0.01)
+        try:
+            yield path, ctx, thrust
+        finally:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+
+
+async def _exchange(sent: list[bytes]) -> tuple[list[Any], ComponentContext, list[ManualThrust]]:
+    async with _served() as (path, ctx, thrust):
         reader, writer = await asyncio.open_unix_connection(path, limit=2 ** 22)
         replies: list[Any] = []
         # arm first (as an operator would), so manual thrust can get through
@@ -82,9 +98,6 @@ async def _exchange(sent: list[bytes]) -> tuple[list[Any], ComponentContext, lis
         writer.write_eof()
         assert await asyncio.wait_for(reader.read(), 30.0) == b""  # nothing more: one each
         writer.close()
-        task.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await task
     return replies, ctx, thrust
 
 
@@ -112,7 +125,9 @@ def test_the_refusals_say_what_was_wrong() -> None:
             b'{"name": "thrust", "args": {"u1": 40, "u2": -40}}',
             b'{"name": "param", "args": {"name": "failsafe.link_lost_s", "value": 20}}',
             b'{"name": "param", "args": {"name": "hold.k_s", "value": 12}}',
-            b'{"name": "params"}']
+            b'{"name": "params"}',
+            b'{"name": "stop", "args": ' + b"[" * 30000,  # stop is always accepted
+            b'{"name": "\\u001b[2Jfly"}']
     replies, ctx, thrust = asyncio.run(_exchange(sent))
     r = replies[2:]
     assert r[0]["reason"].startswith("bad request: JSON is malformed")
@@ -128,4 +143,62 @@ def test_the_refusals_say_what_was_wrong() -> None:
     assert r[8]["ok"]
     table = {p["name"]: p for p in r[9]}
     assert table["failsafe.link_lost_s"]["value"] == 10.0 and table["hold.k_s"]["value"] == 12.0
+    assert r[10]["ok"] and r[10]["mode"] == "idle"
+    assert r[11]["reason"].startswith("unknown command '\\x1b[2Jfly'")
     assert ctx.error is None
+
+
+#: what an operator types after ``zarco ctl`` → (exit status, what stderr must say)
+CTL_CASES: list[tuple[list[str], int, str]] = [
+    (["arm"], 0, ""),
+    (["mission", '{"waypoints": [[41, -8], [41.001, -8]], "start_leg": 1e999}'], 1,
+     "refused: start_leg: number out of range"),
+    (["thrust", '{"u1": 1' + "0" * 400 + ', "u2": 0}'], 1, "refused: u1: number out of range"),
+    (["thrust", '{"u1": " 1e2 ", "u2": 0}'], 1, "refused: u1: must be a number, got text"),
+    (["mission", '{"waypoints": [[41, -8], [41.001, -8]], "start": "false"}'], 1,
+     "refused: start: must be true or false, got text"),
+    (["mission", "[" * 30000], 1, "nested deeper than 8 levels"),
+    (["mission", json.dumps({"waypoints": [[41, -8], [41.001, -8]],
+                             "name": "\x1b[2J" + "n" * 60000})], 1,
+     "refused: name: at most 64 characters"),
+    (["thrust", '{"u1": NaN, "u2": 0}'], 2, "ARGS is not JSON: NaN"),
+    (["thrust", "{u1: 3}"], 2, "ARGS is not JSON"),
+    (["param", "failsafe.link_lost_s", "1e999"], 1, "refused: value: number out of range"),
+    (["param", "failsafe.link_lost", "continue"], 0, ""),
+    (["param", "failsafe.link_lost_s", "20"], 0, ""),
+    (["param", "failsafe.link_lost_s"], 2, "param NAME VALUE"),
+    (["param", '{"name": "hold.k_s", "value": 1e999}'], 1, "refused: value: number out of range"),
+    (["params"], 0, ""),
+    (["status"], 0, ""),
+]
+
+
+def test_zarco_ctl_sends_what_the_operator_typed(capsys: pytest.CaptureFixture[str]) -> None:
+    """``zarco ctl`` passes the operator's JSON as typed, so the runtime's command
+    schema judges it and names the field (``1e999`` stays out of range rather than
+    becoming ``Infinity``); what is not JSON at all never leaves the console (exit
+    2); a refusal is exit 1 with its reason on stderr, never a traceback."""
+    from zarco_runtime.cli import main
+
+    async def body() -> list[tuple[int, str, str]]:
+        out = []
+        async with _served() as (path, ctx, _thrust):
+            for argv, _code, _why in CTL_CASES:
+                code = await asyncio.to_thread(main, ["ctl", "--socket", path, *argv])
+                got = capsys.readouterr()
+                out.append((code, got.out, got.err))
+            assert ctx.error is None
+        return out
+
+    for (argv, code, why), (got, out, err) in zip(CTL_CASES, asyncio.run(body()), strict=True):
+        assert got == code, (argv[0], argv[1:][:1], out[:200], err[:200])
+        assert why in err, (argv[0], err[:300])
+        assert "Traceback" not in err
+        if argv == ["params"]:  # the registry as it now stands
+            table = {p["name"]: p for p in json.loads(out)}
+            assert table["failsafe.link_lost_s"]["value"] == 20.0
+            assert table["failsafe.link_lost"]["value"] == "continue"
+        elif argv == ["status"]:  # the latest VesselStatus (none published here)
+            assert isinstance(json.loads(out), dict)
+        elif code == 0:
+            assert json.loads(out)["ok"] is True

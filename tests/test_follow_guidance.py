@@ -3,11 +3,12 @@ it follows, holding above a still AUV."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
 
-from zarco_core.auv_messages import AuvTrack, TrackFlags
+from zarco_core.auv_messages import AuvPlan, AuvTrack, TrackFlags
 from zarco_runtime.guidance.follow import FollowGuidance, FollowSettings, target_now
 
 VALID = int(TrackFlags.INITIALISED | TrackFlags.LINE_VALID)
@@ -159,3 +160,44 @@ def test_a_reversal_is_steered_as_a_turn_not_as_a_heading_error_of_180_degrees()
         courses.append(st.leg.course_rad)
     # the leg leads the boat's course over ground (north) by at most 90°
     assert all(abs(c) <= math.pi / 2 + 1e-9 for c in courses)
+
+
+def test_above_an_auv_waiting_on_its_plan_the_boat_ahead_on_its_first_leg_waits() -> None:
+    """The AUV hovers at its plan's first point (its speed along the plan a
+    little noise, of either sign): the boat a few metres ahead on the first
+    leg faces the leg and waits there rather than turning round to get above
+    it; behind it, or off the leg, it goes there."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    g.set_plan(AuvPlan(0.0, ((0.0, 0.0), (100.0, 0.0), (100.0, 20.0)), "mission"))
+    still = dataclasses.replace(_track(vx=0.02, sv=0.03), plan_leg=0, plan_s_m=0.0,
+                                plan_speed_mps=-0.05, plan_cross_m=0.0,
+                                plan_turn_radius_m=6.0)
+    for ahead in (2.0, 4.0):
+        st = g.update(still, still.t, ahead, 0.5)
+        assert st.leg is None and st.speed_ref_mps == 0.0, ahead
+        assert st.heading_rad == pytest.approx(0.0)  # the first leg runs north
+    for x, y in ((-4.0, 0.0), (8.0, 0.0), (3.0, 3.0)):
+        st = g.update(still, still.t, x, y)
+        assert st.leg is not None, (x, y)
+        err = math.remainder(st.leg.course_rad - math.atan2(-y, -x), math.tau)
+        assert err == pytest.approx(0.0, abs=1e-6)
+
+
+def test_an_auv_starting_off_is_gone_after_at_its_speed_without_waiting_for_its_track() -> None:
+    """Above a still AUV, its estimate moving off below the still speed: the
+    boat goes after it at the speed it moves away plus the gap over the
+    catch-up time; its filter's σ growing as its track restarts does not stop
+    the boat."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    assert g.update(_track(vx=0.02, sv=0.03), 100.0, 0.5, 0.0).leg is None  # above it
+    off = _track(x=4.0, vx=0.25, sv=0.03, t=101.0)
+    st = g.update(off, 101.0, 0.5, 0.0)
+    assert not g.moving and st.leg is not None and g.target is not None
+    gap = g.target.x - 0.5  # the target moves smoothly to where the filter has it
+    assert gap > 1.0
+    assert st.speed_ref_mps == pytest.approx(0.25 + gap / cfg.catchup_tau_s)
+    unsure = dataclasses.replace(off, kf_pos_sigma_m=3.0, flags=int(TrackFlags.INITIALISED))
+    st = g.update(unsure, 101.5, 0.5, 0.0)
+    assert st.mode == "follow" and st.leg is not None

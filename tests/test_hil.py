@@ -51,7 +51,9 @@ def test_the_runtime_ran_the_mission_and_never_exited(hil: HilResult) -> None:
     cfg = (hil.run_dir / "zarco.toml").read_text()
     for dev, link in r["hil"]["links"].items():
         assert f'url = "{link}"' in cfg and link.endswith(f"/dev/{dev}")
-    assert r["sim_thruster_controller"]["commands"] > 15 * r["sim_seconds"]
+    # the controller stops the boat after 0.5 s without a command: over the run it
+    # was sent at least two a second (the rate itself is measured in tests/bench)
+    assert r["sim_thruster_controller"]["commands"] >= 2 * r["sim_seconds"]
 
 
 def test_gps_unplug_and_replug_are_seen_and_survived(hil: HilResult) -> None:

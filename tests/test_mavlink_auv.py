@@ -65,11 +65,13 @@ def check_position(cfg: RuntimeConfig, tr: AuvTrack, m: Any) -> None:
         assert m.hdg == 65535
 
 
-@pytest.mark.parametrize("ids", [(1, 0), (7, 0), (42, 200)])
-def test_the_auv_is_a_second_system_with_its_track(ids: tuple[int, int]) -> None:
-    boat_id, auv_cfg = ids
-    auv_id = auv_cfg or boat_id + 1
+def test_the_auv_is_a_second_system_with_its_track() -> None:
+    """The boat's system id, and the AUV's (the default, the boat's + 1, or a
+    configured one), drawn anew on every run."""
     rng = random.Random(int.from_bytes(os.urandom(4), "little"))
+    boat_id = rng.randint(1, 250)
+    auv_cfg = rng.choice([0, rng.choice([i for i in range(1, 256) if i != boat_id])])
+    auv_id = auv_cfg or boat_id + 1
     cfg = RuntimeConfig()
     cfg.mavlink.enabled = True
     cfg.mavlink.system_id = boat_id
@@ -287,6 +289,17 @@ def test_a_ground_station_sees_the_boat_and_the_simulated_auv(tmp_path: Any) -> 
         ack = gcs.wait(lambda m: m.get_type() == "COMMAND_ACK"
                        and m.command == mav.MAV_CMD_COMPONENT_ARM_DISARM)
         assert ack.get_srcSystem() == 2 and ack.result == mav.MAV_RESULT_DENIED
+        # as a multi-vehicle ground station sorts them: two systems, each an
+        # autopilot component (1); the AUV's system says only what it is, where it
+        # is and its refusals, the boat's telemetry never carries its id
+        gcs.collect(1.5)
+        by_sys: dict[int, set[str]] = {}
+        for _, m in gcs.log:
+            by_sys.setdefault(m.get_srcSystem(), set()).add(m.get_type())
+            assert m.get_srcComponent() == mav.MAV_COMP_ID_AUTOPILOT1, m
+        assert set(by_sys) == {1, 2}, by_sys
+        assert by_sys[2] == {"HEARTBEAT", "GLOBAL_POSITION_INT", "COMMAND_ACK"}, by_sys[2]
+        assert {"SYS_STATUS", "GPS_RAW_INT", "ATTITUDE", "VFR_HUD", "STATUSTEXT"} <= by_sys[1]
     finally:
         if boat.poll() is None:
             boat.terminate()

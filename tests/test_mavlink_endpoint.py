@@ -23,6 +23,7 @@ os.environ.setdefault("MAVLINK_DIALECT", "common")
 
 import contextlib
 
+from mavlink_support import Gcs, Rig, boot_status, run_rig
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mav
 
@@ -63,6 +64,7 @@ def run_endpoint(url: str, gcs: Callable[[Seen], None], signing_key_file: str = 
         clock = Clock()
         ctx = ComponentContext("mavlink", bus, clock)
         ep = MavlinkEndpoint(cfg, bus, clock, ctx)
+        bus.publish(boot_status(clock.now()))  # as the supervisor at boot
         task = asyncio.ensure_future(ctx.run(ep.run()))
         try:
             await asyncio.to_thread(gcs, seen)
@@ -219,3 +221,64 @@ def test_a_forged_packet_cannot_make_the_signed_ground_station_look_replayed(
     cfg_key = str(tmp_path / "k")
     run_endpoint(f"udpin:127.0.0.1:{port}", gcs, signing_key_file=cfg_key)
     assert results == [mav.MAV_RESULT_ACCEPTED, mav.MAV_RESULT_DENIED, mav.MAV_RESULT_ACCEPTED]
+
+
+def test_the_boat_is_heard_once_the_supervisor_speaks_and_home_reaches_who_asked() -> None:
+    """No heartbeat before the supervisor's first status (a ground station that
+    hears the boat can ask for home); home asked while not known yet is
+    TEMPORARILY_REJECTED and then sent unasked as soon as the supervisor knows
+    it, and again whenever it moves (not when it stays); GET_HOME_POSITION, the
+    deprecated command ground stations still send, answers as REQUEST_MESSAGE."""
+    import random
+
+    rng = random.Random(int.from_bytes(os.urandom(4), "little"))
+    cfg = RuntimeConfig()
+    cfg.mavlink.enabled = True
+    cfg.origin.lat_deg = rng.uniform(-60.0, 60.0)
+    cfg.origin.lon_deg = rng.uniform(-170.0, 170.0)
+    gcs = Gcs()
+    cfg.mavlink.url = gcs.url
+
+    def near() -> tuple[float, float]:
+        return (cfg.origin.lat_deg + rng.uniform(-0.01, 0.01),
+                cfg.origin.lon_deg + rng.uniform(-0.01, 0.01))
+
+    def command(cmd: int, p1: float = 0.0) -> int:
+        gcs.mav.command_long_send(1, 1, cmd, 0, p1, 0, 0, 0, 0, 0, 0)
+        ack = gcs.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == cmd)
+        return int(ack.result)
+
+    def is_home(m: Any, home: tuple[float, float]) -> bool:
+        return bool(m.get_type() == "HOME_POSITION" and m.latitude == round(home[0] * 1e7)
+                    and m.longitude == round(home[1] * 1e7))
+
+    def ground_station(rig: Rig) -> None:
+        # telemetry flows, but no heartbeat while the supervisor has not spoken
+        gcs.wait(lambda m: m.get_type() == "SYS_STATUS", 10.0)
+        assert not [m for m in gcs.collect(1.5) if m.get_type() == "HEARTBEAT"]
+        rig.publish(lambda now: boot_status(now))
+        hb = gcs.wait(lambda m: m.get_type() == "HEARTBEAT", 3.0)
+        assert hb.system_status == mav.MAV_STATE_STANDBY and hb.custom_mode == 4
+        # home not known yet: asked, refused for now
+        for cmd, p1 in ((mav.MAV_CMD_REQUEST_MESSAGE, float(mav.MAVLINK_MSG_ID_HOME_POSITION)),
+                        (mav.MAV_CMD_GET_HOME_POSITION, 0.0)):
+            assert command(cmd, p1) == mav.MAV_RESULT_TEMPORARILY_REJECTED
+        # the supervisor learns home: it comes unasked
+        home = near()
+        rig.publish(lambda now: boot_status(now, home))
+        gcs.wait(lambda m: is_home(m, home), 3.0)
+        rig.publish(lambda now: boot_status(now, home))  # the same home: not again
+        assert not [m for m in gcs.collect(1.0) if m.get_type() == "HOME_POSITION"]
+        moved = near()
+        rig.publish(lambda now: boot_status(now, moved))
+        gcs.wait(lambda m: is_home(m, moved), 3.0)
+        for cmd, p1 in ((mav.MAV_CMD_REQUEST_MESSAGE, float(mav.MAVLINK_MSG_ID_HOME_POSITION)),
+                        (mav.MAV_CMD_GET_HOME_POSITION, 0.0)):
+            mark = len(gcs.log)
+            assert command(cmd, p1) == mav.MAV_RESULT_ACCEPTED
+            assert any(is_home(m, moved) for _, m in gcs.log[mark:])
+
+    try:
+        run_rig(cfg, ground_station, status=False)
+    finally:
+        gcs.close()

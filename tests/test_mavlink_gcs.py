@@ -30,6 +30,7 @@ from typing import Any
 os.environ.setdefault("MAVLINK20", "1")
 os.environ.setdefault("MAVLINK_DIALECT", "common")
 
+import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mav
 
@@ -456,6 +457,7 @@ def test_the_ground_station_sees_the_supervisors_vessel(tmp_path: Path) -> None:
         gcs.heartbeat(lambda m: True, timeout=20.0)
         other.heartbeat(lambda m: True, timeout=20.0)
         gcs.wait("GPS_RAW_INT", lambda m: m.fix_type == mav.GPS_FIX_TYPE_RTK_FIXED, 15.0)
+        # the boat is heard once the supervisor has spoken: asked once, home is there
         assert gcs.command(mav.MAV_CMD_REQUEST_MESSAGE,
                            mav.MAVLINK_MSG_ID_HOME_POSITION) == mav.MAV_RESULT_ACCEPTED
         hp = gcs.last["HOME_POSITION"]
@@ -489,6 +491,31 @@ def test_the_ground_station_sees_the_supervisors_vessel(tmp_path: Path) -> None:
                            and m.param_value == value)
         assert heard.param_count == len(TABLE)
 
+        # a geofence a hand's width about home: the boat is outside, a failsafe
+        # holds, and arming is refused with the reason, forced or not (MAVProxy's
+        # `arm throttle force` sends 2989, MAVLink's force is 21196)
+        # (a value as typed: 0.1, not its float32 0.100000001)
+        mark = len(gcs.texts)
+        assert gcs.param_set("FENCE_RADIUS_M", 0.1) == pytest.approx(0.1)
+        gcs.wait_text(lambda t: t.startswith("geofence.radius_m = 0.1 (was 0.0)"), mark)
+        gcs.heartbeat(lambda m: m.system_status == mav.MAV_STATE_CRITICAL)
+        # (the supervisor's event of a refusal is held back after 5 acknowledgements
+        # to one source in a second: the ground station that asked is told anyway)
+        for _ in range(6):
+            assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 0) == mav.MAV_RESULT_ACCEPTED
+        for force in (0.0, 2989.0, 21196.0):
+            mark = len(gcs.texts)
+            assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1,
+                               force) == mav.MAV_RESULT_TEMPORARILY_REJECTED, force
+            if not force:  # (the same text is not repeated within 2 s)
+                gcs.wait_text(lambda t: t.startswith("arm from mavlink:255: refused: "
+                                                     "failsafe active: geofence"), mark)
+            else:
+                gcs.wait_text(lambda t, f=force: t == f"arm from mavlink:255: force ({f:g}) "
+                              "does not bypass the arming checks", mark)
+        assert not gcs.last["HEARTBEAT"].base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED
+        assert gcs.param_set("FENCE_RADIUS_M", 0.0) == 0.0
+        gcs.heartbeat(lambda m: m.system_status == mav.MAV_STATE_STANDBY, timeout=10.0)
         assert gcs.command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED
         gcs.heartbeat(lambda m: m.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED)
         assert gcs.command(mav.MAV_CMD_MISSION_START) == mav.MAV_RESULT_ACCEPTED

@@ -190,7 +190,11 @@ def test_received_values_become_the_registrys_types() -> None:
     kp = t.by_name["CTL_SPD_KP"]
     for _ in range(50):
         x = f32(rng.uniform(-1e6, 1e6))
-        assert t.from_wire(kp, x) == x  # the range is the supervisor's to judge
+        assert f32(t.from_wire(kp, x)) == x  # the range is the supervisor's to judge
+        # what a person types (up to 6 significant digits) is what the
+        # configuration gets, not its float32 neighbour (0.1, not 0.100000001)
+        typed = float(f"{rng.uniform(-1e3, 1e3):.{rng.randint(1, 6)}g}")
+        assert t.from_wire(kp, f32(typed)) == typed
     for bad in (math.nan, math.inf, -math.inf):
         with pytest.raises(ValueError, match="not a number"):
             t.from_wire(kp, bad)

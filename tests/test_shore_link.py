@@ -122,9 +122,13 @@ def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
             ("thrust", '{"u1": "x", "u2": 10}', {"ok": False}),
             ("thrust", '{"u1": 10, "u2": 10}', {"ok": False, "reason": "disarmed"}),
             ("fly", "{}", {"ok": False}),
-            ("stop", "not json", {"ok": False}),
-            ("stop", "[1, 2]", {"ok": False}),
-            ("stop", b"\xff\xfe", {"ok": False}),
+            ("mode", "not json", {"ok": False}),
+            ("mode", "[1, 2]", {"ok": False}),
+            ("mode", b"\xff\xfe", {"ok": False}),
+            # stop is always accepted, whatever came with it
+            ("stop", "not json", {"ok": True, "mode": "idle"}),
+            ("stop", "[1, 2]", {"ok": True, "mode": "idle"}),
+            ("stop", b"\xff\xfe", {"ok": True, "mode": "idle"}),
         ]
         for name, payload, want in cases:
             replies = await _get(s, f"zarco/v1/cmd/{name}", payload)
@@ -146,8 +150,10 @@ def test_commands_get_exactly_one_reply_whatever_they_carry() -> None:
         wild = json.loads(r[0].ok.payload.to_bytes())
         assert not wild["ok"] and wild["reason"].startswith("bad request")
         # malformed payloads and unknown or ill-typed commands never reached the
-        # supervisor (refused at decoding); the others did, once each
-        assert len(seen) == 8
+        # supervisor (refused at decoding); the others did, once each (the stops
+        # with an unreadable payload as plain stops)
+        assert len(seen) == 11
+        assert [type(c.args).__name__ for c in seen].count("StopArgs") == 6
 
     _run(_config(port), port, body)
 
@@ -208,6 +214,8 @@ HOSTILE_ATTACHMENTS: list[tuple[bytes, str]] = [
     (json.dumps({"user": "\x1b[31mred"}).encode(), "attachment.user: at most 64 printable"),
     (json.dumps({"id": [1]}).encode(), "attachment.id: must be a string"),
 ]
+#: a stop's expected reply: accepted, idle
+STOPPED = "(stopped)"
 HOSTILE_BEATS = [b"[" * 30000, b"\xff", b"garbage", b'{"user": 5}', b'{"t": "now"}',
                  b'{"user": "' + b"u" * 2000 + b'"}', b"[]"]
 
@@ -248,12 +256,25 @@ def test_one_bad_item_never_drops_another(monkeypatch: pytest.MonkeyPatch) -> No
 
         sent: dict[str, tuple[str, bytes, bytes, str]] = {}
         for i, (p, why) in enumerate(HOSTILE_PAYLOADS):
-            sent[f"p{i}"] = ("stop", p, b"", why)
+            sent[f"p{i}"] = ("arm", p, b"", why)
         for i, (a, why) in enumerate(HOSTILE_ATTACHMENTS):
-            sent[f"a{i}"] = ("stop", b"{}", a, why)
+            sent[f"a{i}"] = ("arm", b"{}", a, why)
         sent["key"] = ("Stop", b"{}", b"", "key: expected zarco/v1/cmd/<name>")
         sent["deep"] = ("stop/now", b"{}", b"", "key: expected")
-        sent["boom"] = ("stop", b'{"boom": 1}', b"", "OverflowError")
+        sent["boom"] = ("arm", b'{"boom": 1}', b"", "OverflowError")
+        # stop is always accepted: whatever came with it, and a link that failed
+        # to read it (boom) still sends it
+        sent["stop_p"] = ("stop", b"[" * 30000, b"", STOPPED)
+        sent["stop_a"] = ("stop", b"null", b'{"user": "\x1b[2J", "id": [1]}', STOPPED)
+        sent["stop_boom"] = ("stop", b'{"boom": 1}', json.dumps({"id": "s-1"}).encode(),
+                             STOPPED)
+        # the command schema's, through the link: the field and the reason
+        sent["inf"] = ("mission", b'{"waypoints": [[41, -8], [41.001, -8]], "start_leg": 1e999}',
+                       b"", "start_leg: number out of range")
+        sent["digits"] = ("thrust", b'{"u1": 1' + b"0" * 400 + b', "u2": 0}', b"",
+                          "u1: number out of range")
+        sent["start"] = ("mission", b'{"waypoints": [[41, -8], [41.001, -8]], "start": "false"}',
+                         b"", "start: must be true or false, got text")
         for i in range(12):
             sent[f"good{i}"] = ("stop", b"{}", json.dumps({"id": f"good-{i}",
                                                            "user": "alice"}).encode(), "")
@@ -286,14 +307,16 @@ def test_one_bad_item_never_drops_another(monkeypatch: pytest.MonkeyPatch) -> No
             assert len(got) == 1, (k, got)
             r = got[0]
             assert set(r) == {"ok", "id", "mode", "reason"}, (k, r)
-            if why:
+            if why is STOPPED:
+                assert r["ok"] is True and r["mode"] == "idle", (k, r)
+            elif why:
                 assert r["ok"] is False and why in r["reason"], (k, r)
             else:
                 assert r["ok"] is True and r["id"] == f"good-{k[4:]}", (k, r)
         assert {b.user for b in beats} == {f"op{i}" for i in range(12)}
         link = seen["link"]
         c = link.link_counters()
-        assert c["faults"] == 1
+        assert c["faults"] == 2 and c["stops_unread"] == 3
         assert c["bad_heartbeats"] == len(HOSTILE_BEATS) + 2 * len(sent)
         assert c["commands_bad"] == len(HOSTILE_PAYLOADS) + len(HOSTILE_ATTACHMENTS) + 2
         assert seen["shore"].restarts == 0
@@ -450,3 +473,29 @@ def test_usrpwd_settings_check_the_users_file(tmp_path: Any) -> None:
         build(RuntimeConfig, {"shore": {**base, "operators": ["alice"]}}, "f")
     # a disabled link is not judged
     build(RuntimeConfig, {"shore": {"listen": ["tcp/0.0.0.0:7447"]}}, "f")
+
+
+def test_a_stop_is_never_queued_behind_a_flood() -> None:
+    """The inbox full of other commands (a flood is answered busy) still takes a
+    stop, and hands it over before anything else queued."""
+    from zarco_runtime.links.shore.inbox import COMMANDS_MAX, Inbox, Query
+
+    async def main() -> list[str]:
+        handled: list[str] = []
+        inbox = Inbox(asyncio.get_running_loop(), lambda it: handled.append(it.key),
+                      lambda it, exc: None)
+
+        def q(name: str) -> Query:
+            return Query(None, f"zarco/v1/cmd/{name}", b"{}", 2, b"", 0)
+
+        assert all(inbox.post(q("mode")) for _ in range(COMMANDS_MAX))
+        assert not inbox.post(q("mode"))  # full: busy
+        assert inbox.post(q("stop"))
+        for _ in range(1000):
+            if len(handled) == COMMANDS_MAX + 1:
+                break
+            await asyncio.sleep(0)
+        return handled
+
+    handled = asyncio.run(main())
+    assert handled[0] == "zarco/v1/cmd/stop" and len(handled) == COMMANDS_MAX + 1

@@ -214,14 +214,21 @@ def test_distance_shown_is_the_auv_keys(rig: Rig) -> None:
     seen: set[float] = set()
     deadline = time.monotonic() + 40.0
     while len(seen) < 4 and time.monotonic() < deadline:
-        t, text = page.evaluate("""() => { const a = zarco.latest("auv");
-            return [a ? a.t : null, document.getElementById("distance").textContent]; }""")
+        t, text, sound = page.evaluate("""() => { const a = zarco.latest("auv");
+            return [a ? a.t : null, document.getElementById("distance").textContent,
+                    document.getElementById("sound-speed").textContent]; }""")
         ref = rig.observer.snapshot()["alpha"].auv
         if t is not None and ref.get("t") == t and ref.get("distance_m") is not None:
             # shown to 0.1 m: the key's value to the display's half unit (a tie such as
             # 0.25 rounds up in the page, to even in Python)
             assert abs(float(text) - ref["distance_m"]) <= 0.05 + 1e-9, (text, ref)
             assert len(text.split(".")[1]) == 1
+            # the sound speed the tracker ranges with and its 1σ, "c ± σ m/s" to 0.1
+            c, pm, sigma, unit = sound.split()
+            assert (pm, unit) == ("±", "m/s"), sound
+            assert abs(float(c) - ref["sound_speed_mps"]) <= 0.05 + 1e-9, (sound, ref)
+            assert abs(float(sigma) - ref["sound_speed_sigma_mps"]) <= 0.05 + 1e-9, (sound,
+                                                                                       ref)
             seen.add(t)
         time.sleep(0.1)
     assert len(seen) >= 4, f"only {len(seen)} AUV updates compared"
@@ -265,9 +272,16 @@ def test_stop_button_and_escape_stop_the_boat(rig: Rig) -> None:
     assert page.text_content("#cmd-result").startswith("stop: accepted by alpha, mode idle")
     _until(lambda: len(_acks(rig, "alpha", "stop from shore:alice: accepted")) == before + 1,
            what="the boat's acknowledgement")
+    # stopped is disarmed: the supervisor refuses to follow, and the page says why
+    _text(page, "#armed", "t === 'disarmed'")
+    page.click("#cmd-follow")
+    _text(page, "#cmd-result", "t.startsWith('follow: REFUSED')")
+    assert page.text_content("#cmd-result") == "follow: REFUSED: disarmed"
+    assert _mode(rig, "alpha") == "idle"
     # arm and follow again from the buttons, then Escape
     page.click("#cmd-arm")
     _text(page, "#cmd-result", "t.startsWith('arm: accepted')")
+    _text(page, "#armed", "t === 'armed'")
     page.click("#cmd-follow")
     _text(page, "#cmd-result", "t.startsWith('follow: accepted')")
     _text(page, "#mode", "t === 'follow'")
@@ -275,6 +289,14 @@ def test_stop_button_and_escape_stop_the_boat(rig: Rig) -> None:
     _text(page, "#mode", "t === 'idle'", 10_000)
     assert _mode(rig, "alpha") == "idle"
     _until(lambda: len(_acks(rig, "alpha", "stop from shore:alice: accepted")) == before + 2)
+    _text(page, "#armed", "t === 'disarmed'")
+    # the disarm button: armed, then disarmed, as the boat's state says
+    page.click("#cmd-arm")
+    _text(page, "#armed", "t === 'armed'")
+    page.click("#cmd-disarm")
+    _text(page, "#cmd-result", "t.startsWith('disarm: accepted')")
+    _text(page, "#armed", "t === 'disarmed'")
+    _until(lambda: rig.observer.snapshot()["alpha"].state.get("armed") is False)
 
 
 def test_a_refusal_shows_the_boats_reason(rig: Rig) -> None:

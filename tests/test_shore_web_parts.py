@@ -109,6 +109,33 @@ def test_off_loopback_the_page_needs_the_printed_key() -> None:
         hub.close()
 
 
+@pytest.mark.parametrize(("host", "warned"), [("0.0.0.0", True), ("127.0.0.1", False),
+                                              ("::1", False)])
+def test_listening_off_loopback_is_warned_about(tmp_path: Any, host: str,
+                                                warned: bool) -> None:
+    """``zarco shore web --listen`` off loopback warns before anything else (here
+    no boat answers, and it ends with that reason: exit 2)."""
+    import os
+    import subprocess
+    import sys
+
+    from shore_support import ROOT, write_credentials
+
+    cred = write_credentials(tmp_path / "cred", "alice", "x")
+    cfg = tmp_path / "console.toml"
+    cfg.write_text(f'connect = ["tcp/127.0.0.1:{free_port()}"]\n'
+                   f'credentials_file = "{cred}"\n')
+    cfg.chmod(0o600)
+    listen = f"[{host}]:{free_port()}" if ":" in host else f"{host}:{free_port()}"
+    env = {**os.environ, "ZARCO_SHORE_CONFIG": str(cfg)}
+    r = subprocess.run([sys.executable, "-m", "zarco_runtime.cli", "shore", "web",
+                        "--listen", listen], cwd=ROOT, env=env, capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 2 and "no boat reachable" in r.stderr, r.stderr
+    assert ("WARNING: listening on" in r.stderr) is warned, r.stderr
+    assert "Traceback" not in r.stderr
+
+
 def test_foxglove_messages_of_shore_samples() -> None:
     st = {"t": 1.7e9 + 0.25, "lat_deg": 41.1, "lon_deg": -8.6, "pos_valid": True, "mode": "lines"}
     out = dict(messages("state", st))

@@ -222,3 +222,22 @@ def test_thrust_renewals_are_counted_not_announced() -> None:
     assert all(a.ok for a in _acks(res)) and len(_acks(res)) == 9
     acks = [e.text for e in res.extra["events"] if e.kind == "ack"]
     assert acks == ["arm from scenario: accepted", "mode from scenario: accepted"]
+
+
+def test_autostart_applies_at_boot_but_never_after_a_restart(tmp_path: Path) -> None:
+    """A boot autostarts the configured mission; a process that finds the last
+    mission unfinished in the state file (it was killed under way) is a restart:
+    idle and disarmed, saying why, until an operator resumes it."""
+    state = tmp_path / "state.json"
+    sets = ["mission.kind=lines", "mission.autostart=true",
+            f'runtime.supervisor.state_file="{state}"']
+    first = _sim([], 30.0, *sets, arm_at=None)
+    assert "lines" in _modes(first)
+    assert not json.loads(state.read_text())["complete"]  # the run ended under way
+    second = _sim([(8.0, "arm", {}), (9.0, "resume", {})], 12.0, *sets, arm_at=None)
+    d = second.extra["directives"]
+    before = [x for x in d if x.t < 8.0]
+    assert all(x.mode.value == "idle" and not x.armed for x in before), before
+    assert any("not started" in e.text and "unfinished" in e.text
+               for e in second.extra["events"])
+    assert d[-1].mode.value == "lines" and "resume" in d[-1].reason

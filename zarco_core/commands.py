@@ -195,9 +195,21 @@ class CommandRefused(ValueError):
     ``waypoints[3][0]``, "" for the payload as a whole) and ``reason``."""
 
     def __init__(self, field: str, reason: str) -> None:
-        self.field = field
-        self.reason = reason
-        super().__init__(f"{field}: {reason}" if field else reason)
+        # what the sender wrote may be in either (an unknown field's name): a
+        # refusal is shown on terminals and in the event stream, so it carries
+        # no control characters (a terminal escape shows as ``\x1b``)
+        self.field = shown(field)
+        self.reason = shown(reason)
+        super().__init__(f"{self.field}: {self.reason}" if field else self.reason)
+
+
+def shown(text: str) -> str:
+    """``text`` with every character that is not printable written as its
+    escape (``\x1b``, ``\n``, ``\u2028``): safe on a terminal."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
+                   for c in text)
 
 
 _PATH = re.compile(r" - at `\$(.*)`$")
@@ -267,7 +279,9 @@ def nesting_ok(raw: bytes, limit: int = MAX_DEPTH) -> bool:
     for _ in range(limit):
         if not rest:
             return True
-        inner = rest.replace(b"[]", b"").replace(b"{}", b"")
+        # the innermost pairs are marked first, then dropped: a pair that only
+        # held them (``{[]}``) is one level more, for the next pass
+        inner = rest.replace(b"[]", b".").replace(b"{}", b".").replace(b".", b"")
         if len(inner) == len(rest):
             return False  # unmatched brackets
         rest = inner

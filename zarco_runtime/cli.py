@@ -29,34 +29,60 @@ def cmd_run(args: argparse.Namespace) -> int:
     return run_vessel(args.config, args.set, args.status)
 
 
+def _not_json(word: str) -> Any:
+    raise json.JSONDecodeError(f"{word} is not a JSON number", word, 0)
+
+
+def _json_text(text: str) -> str:
+    """``text`` on one line, as typed: not re-encoded, so the runtime's command
+    schema judges the operator's own numbers (``1e999`` is refused there naming
+    its field, where ``json.dumps`` would have made it ``Infinity``) and its
+    nesting.  Raises ``json.JSONDecodeError`` when ``text`` is not JSON (Python's
+    ``NaN`` and ``Infinity`` included)."""
+    try:
+        json.loads(text, parse_constant=_not_json)
+    except json.JSONDecodeError:
+        raise
+    except (ValueError, RecursionError):
+        pass  # JSON too deep or too long a number for Python: the runtime refuses it
+    # JSON's strings hold no raw line breaks: these are whitespace between tokens
+    return text.replace("\r", " ").replace("\n", " ")
+
+
 def cmd_ctl(args: argparse.Namespace) -> int:
     """``zarco ctl``: one command to a running runtime over its local socket."""
     import socket
 
     listing = args.name in ("status", "params")
     if listing:
-        req: dict[str, Any] = {"name": args.name}
+        line = json.dumps({"name": args.name})
     elif args.name == "param" and len(args.args) == 2:  # zarco ctl param NAME VALUE
         try:
-            value: Any = json.loads(args.args[1])
+            value = _json_text(args.args[1])
         except json.JSONDecodeError:
-            value = args.args[1]  # a word: one of the parameter's choices
-        req = {"name": "param", "args": {"name": args.args[0], "value": value}}
+            value = json.dumps(args.args[1])  # a word: one of the parameter's choices
+        line = (f'{{"name": "param", "args": {{"name": {json.dumps(args.args[0])}, '
+                f'"value": {value}}}}}')
+    elif args.name == "param" and len(args.args) == 1 \
+            and not args.args[0].lstrip().startswith("{"):
+        print("zarco ctl: param NAME VALUE (e.g. `zarco ctl param failsafe.link_lost_s 20`), "
+              "or one JSON object", file=sys.stderr)
+        return 2
     elif len(args.args) > 1:
         print("zarco ctl: one ARGS (a JSON object), or `param NAME VALUE`", file=sys.stderr)
         return 2
     else:
         try:
-            cmd_args = json.loads(args.args[0]) if args.args else {}
+            cmd_args = _json_text(args.args[0]) if args.args else "{}"
         except json.JSONDecodeError as exc:
             print(f"zarco ctl: ARGS is not JSON: {exc}", file=sys.stderr)
             return 2
-        req = {"name": args.name, "args": cmd_args}
+        line = f'{{"name": {json.dumps(args.name)}, "args": {cmd_args}}}'
     try:
         with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
             s.settimeout(5.0)
             s.connect(args.socket)
-            s.sendall((json.dumps(req) + "\n").encode())
+            s.sendall((line + "\n").encode("utf-8", "surrogateescape"))
             buf = b""
             while not buf.endswith(b"\n"):
                 chunk = s.recv(65536)
@@ -69,14 +95,16 @@ def cmd_ctl(args: argparse.Namespace) -> int:
         return 2
     try:
         reply = json.loads(buf or b"{}")
-        if not isinstance(reply, dict):
+        # an object; `params` is answered with a list (or an object refusing it)
+        if not isinstance(reply, dict) and not (args.name == "params"
+                                                and isinstance(reply, list)):
             raise ValueError("not an object")
     except ValueError:
         print(f"zarco ctl: {args.socket}: not a reply of a zarco runtime: {buf[:80]!r}",
               file=sys.stderr)
         return 2
     print(json.dumps(reply, indent=2 if listing else None))
-    if not listing and not reply.get("ok"):
+    if isinstance(reply, dict) and "ok" in reply and not reply["ok"]:
         print(f"zarco ctl: refused: {reply.get('reason')}", file=sys.stderr)
         return 1
     return 0

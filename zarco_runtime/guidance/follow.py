@@ -90,6 +90,9 @@ APPROACH_SIGMAS = 4.0
 #: legs, the track's
 PLAN_CORNER_ZONE_M = 12.0
 PLAN_AFTER_CORNER_S = 20.0
+#: above an AUV waiting on its plan, the boat this far ahead of it on its first
+#: leg (m, within the hold radius of the leg) waits there for it
+ABOVE_AHEAD_M = 5.0
 #: length of the virtual leg laid past the aim point (m)
 LEG_PAST_AIM_M = 100.0
 #: the paper law's leg starts this far behind the AUV and ends this far ahead (m)
@@ -207,10 +210,12 @@ class FollowGuidance:
             # metres of uncertainty do not matter tens of metres away
             sigma = track.kf_pos_sigma_m
             far = math.hypot(tg.x - x, tg.y - y) >= APPROACH_SIGMAS * max(sigma, 1.0)
+            # Once above it, an AUV starting off (its filter's σ grows while the
+            # track restarts) is gone after at once, not waited for
             settled = bool(track.flags & TrackFlags.INITIALISED) and (
                 (sigma <= cfg.hold_above_sigma_m
                  and (self._was_above or bool(track.flags & TrackFlags.LINE_VALID)))
-                or (far and sigma <= cfg.max_pos_sigma_m))
+                or ((far or self._was_above) and sigma <= cfg.max_pos_sigma_m))
             if not settled:
                 return self._hold(x, y, "AUV (nearly) still, track settling")
             return self._above(tg, t, x, y, path.course_at(0.0) if on_plan is not None
@@ -382,13 +387,22 @@ class FollowGuidance:
                course: float = math.nan) -> FollowState:
         """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
         position (facing ``course``, rad, when it is known: on its plan, the
-        AUV will leave along it), else go there (faster the further it is)."""
+        AUV will leave along it — and ahead of it on that course, up to
+        ``ABOVE_AHEAD_M``, the boat waits for it rather than turning round),
+        else go there at the speed the AUV moves away (its estimate's, while
+        it is not yet taken to move) plus the gap over ``catchup_tau_s``."""
         cfg = self.cfg
         self._was_above = True
         self.hold = None
         self.mode = "follow"
-        dist = math.hypot(tg.x - x, tg.y - y)
-        if dist <= cfg.hold_radius_m:
+        dx, dy = tg.x - x, tg.y - y
+        dist = math.hypot(dx, dy)
+        waiting = False
+        if math.isfinite(course):
+            cc, sc = math.cos(course), math.sin(course)
+            lead, side = -(dx * cc + dy * sc), -dx * sc + dy * cc
+            waiting = 0.0 <= lead <= ABOVE_AHEAD_M and abs(side) <= cfg.hold_radius_m
+        if dist <= cfg.hold_radius_m or waiting:
             self._psi_ref = None
             return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
                                heading_rad=course)
@@ -397,7 +411,9 @@ class FollowGuidance:
                 math.radians(cfg.new_line_deg):
             self.leg_id += 1
             self._psi_leg = psi
-        v_ref = min(cfg.max_speed_mps, max(cfg.hold_speed_mps, dist / cfg.catchup_tau_s))
+        away = max(0.0, (tg.vx * dx + tg.vy * dy) / dist)
+        v_ref = min(cfg.max_speed_mps, max(cfg.hold_speed_mps,
+                                           away + dist / cfg.catchup_tau_s))
         c, s = math.cos(psi), math.sin(psi)
         leg = Leg(self.leg_id, x, y, x + dist * c, y + dist * s, v_ref)
         return FollowState("follow", leg, 0.0, 0.0, v_ref, "above a still AUV", tg.source)

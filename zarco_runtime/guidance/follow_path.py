@@ -31,6 +31,8 @@ from dataclasses import dataclass
 from zarco_core.auv_messages import AuvTrack, TrackFlags
 from zarco_runtime.tracking.plan import Plan
 
+#: a speed along the plan below minus this (m/s) is the AUV going backwards
+BACKWARDS_MPS = 0.2
 #: the boat is located on a plan path within this of the target's path coordinate (m)
 LOCATE_WINDOW_M = 30.0
 
@@ -156,12 +158,15 @@ def plan_target(track: AuvTrack, plan: Plan, t: float) -> tuple[Target, PlanPath
     """The AUV at runtime time ``t`` on its plan: the tracker's progress along
     it (``plan_s_m`` at the track's time origin, ``plan_speed_mps``) carried
     forward, offset ``plan_cross_m`` as the AUV is; and its path.  None when
-    the track does not put the AUV on a leg of ``plan`` (or going backwards)."""
+    the track does not put the AUV on a leg of ``plan`` (or going backwards
+    faster than ``BACKWARDS_MPS``: a still AUV's speed along the plan is
+    noise of either sign, taken as 0)."""
     s0, u, cross = track.plan_s_m, track.plan_speed_mps, track.plan_cross_m
     radius = track.plan_turn_radius_m
     if not (0 <= track.plan_leg < len(plan.legs) and math.isfinite(s0) and math.isfinite(u)
-            and math.isfinite(cross) and u >= 0.0):
+            and math.isfinite(cross) and u >= -BACKWARDS_MPS):
         return None
+    u = max(u, 0.0)
     radius = radius if math.isfinite(radius) and radius > 0.0 else 0.0
     s = plan.advance(s0, u * max(t - track.t0, 0.0), radius)
     x, y, course = plan.point_at(s, cross, radius)

@@ -28,6 +28,7 @@ import itertools
 import json
 import logging
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -44,6 +45,7 @@ from zarco_core.commands import (
     CommandRefused,
     decode,
     nesting_ok,
+    shown,
 )
 from zarco_core.messages import Command, CommandAck, VesselStatus
 from zarco_runtime.guidance.directive import Directive
@@ -99,8 +101,9 @@ class LocalCommands:
         try:
             typed = decode(name, args)
         except CommandRefused as exc:
-            shown = name[:64] if isinstance(name, str) else "?"
-            ack = CommandAck(self.clock.now(), cid, src, shown, False, self._mode(), str(exc))
+            # the name as told in the event stream: bounded, no control characters
+            told = shown(name[:MAX_TEXT]) if isinstance(name, str) else "?"
+            ack = CommandAck(self.clock.now(), cid, src, told, False, self._mode(), str(exc))
             self.bus.publish(ack)
             return ack
         fut: asyncio.Future[CommandAck] = asyncio.get_running_loop().create_future()
@@ -129,6 +132,12 @@ class _Request(msgspec.Struct, forbid_unknown_fields=True):
 
 
 _REQUEST = msgspec.json.Decoder(_Request)
+#: a line that begins as a stop request (``{"name": "stop"``), read or not
+_STOP = re.compile(rb'\s*\{\s*"name"\s*:\s*"stop"\s*[,}]')
+
+
+class _Unread(ValueError):
+    """A request line that cannot be read (the reason)."""
 #: longest request line (bytes): a command payload and its envelope
 MAX_LINE = MAX_PAYLOAD_BYTES + 1024
 
@@ -165,14 +174,21 @@ class ControlSocket:
             return {"ok": False, "id": cid, "mode": self.commands._mode(),
                     "reason": f"bad request: {why}"}
 
-        if not nesting_ok(line, MAX_DEPTH + 1):
-            return bad(f"not JSON, or nested deeper than {MAX_DEPTH} levels")
         try:
-            req = _REQUEST.decode(line)
-        except msgspec.ValidationError as exc:
-            return bad(f"expected {{\"name\": ..., \"args\": {{...}}, \"id\"?: ...}} ({exc})")
-        except msgspec.DecodeError as exc:
-            return bad(str(exc))
+            if not nesting_ok(line, MAX_DEPTH + 1):
+                raise _Unread(f"not JSON, or nested deeper than {MAX_DEPTH} levels")
+            try:
+                req = _REQUEST.decode(line)
+            except msgspec.ValidationError as exc:
+                raise _Unread(f"expected {{\"name\": ..., \"args\": {{...}}, \"id\"?: ...}} "
+                              f"({exc})") from None
+            except msgspec.DecodeError as exc:
+                raise _Unread(str(exc)) from None
+        except _Unread as exc:
+            if not _STOP.match(line):
+                return bad(str(exc))
+            # stop is always accepted: a line that asks for it stops, whatever follows
+            req = _Request("stop")
         if req.name == "status":
             return status_json(self.status.value)
         if req.name == "params":

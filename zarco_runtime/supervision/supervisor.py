@@ -19,7 +19,8 @@ disarmed every command that would move the boat (a moving mode, a mission
 start, ``follow``, manual thrust, ``resume``) is refused with "disarmed", and
 the directive says so, so the control task sends zero thrust whatever its
 mode.  ``mission.autostart`` arms at boot once the checks pass (the
-operator's explicit choice) and starts the mission.
+operator's explicit choice) and starts the mission, except after a restart
+(the state file holds a mission left unfinished): a restart never drives off.
 
 **Failsafes latch** (:mod:`.failsafes`): conditions are judged in every mode;
 one clears only after its condition has been healthy for
@@ -174,7 +175,12 @@ class Supervisor:
         self.state = state if state is not None else StateFile(cfg.supervisor.state_file)
         self.saved: SavedMission | None = self.state.load()
         self.loaded: Mission | None = self.boot.mission  # a mission given but not started
-        self.pending_start = self.boot.autostart and self.boot.mission is not None
+        #: a mission left unfinished by the last process (a crash, a kill, a power
+        #: cut): this start is a restart, and a restart never drives off on its own,
+        #: whatever ``mission.autostart`` says; the operator resumes or starts it
+        self.restarted = self.saved is not None and not self.saved.complete
+        self.pending_start = (self.boot.autostart and self.boot.mission is not None
+                              and not self.restarted)
         self.fs_applied = False  # the mode is a failsafe's (no operator command since)
         self.fs_interrupted: tuple[Mode, Mission | None, int] | None = None
         self.progress = MissionProgress()
@@ -809,6 +815,10 @@ class Supervisor:
         self.event("mode", "supervisor started: mode idle, disarmed"
                    + (f"; last mission {self.saved.mission.name!r} can be resumed"
                       if self.saved and not self.saved.complete else ""))
+        if self.boot.mission is not None and self.boot.autostart and self.restarted:
+            self.event("mission", f"mission {self.boot.mission.name!r} not started: the "
+                       "last mission was left unfinished, so this is a restart and "
+                       "mission.autostart does not apply; arm, then resume or start it")
         if self.boot.mission is not None and not self.boot.autostart:
             self.event("mission", f"mission {self.boot.mission.name!r} loaded; not started "
                        "(mission.autostart = false): arm, then send mode lines or follow to "

@@ -4,7 +4,8 @@ computer's cores or on a Dask cluster.
 ::
 
     zarco campaign SPEC.toml [--n N] [--seed S] [--set KEY=VALUE ...] [--out DIR]
-                             [--jobs N] [--scheduler tcp://HOST:8786]
+                             [--choice NAME=VALUE[:WEIGHT],...] [--jobs N]
+                             [--scheduler tcp://HOST:8786]
     zarco campaign compare A B [--out FILE.json]
 
 Registered through the ``zarco.commands`` entry point; the heavy modules load
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from zarco_core.config import ConfigError
+from zarco_core.paths import writable_dir
 
 
 def _positive_int(text: str) -> int:
@@ -79,22 +81,30 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     from zarco_tools.campaign.plots import factor_effects, format_effects, plot_campaign
     from zarco_tools.campaign.results import ResultsDir
     from zarco_tools.campaign.run import run_dask, run_local
-    from zarco_tools.campaign.spec import load_spec
+    from zarco_tools.campaign.spec import load_spec, parse_choice, with_choices
     from zarco_tools.campaign.tables import format_summary, summarise
     from zarco_tools.scenario import scenario_from_data
 
     spec = load_spec(args.spec)
+    choices = dict(parse_choice(c, spec.kind) for c in args.choice)
+    spec = with_choices(spec, choices)
     n = args.n or spec.missions
     sets = list(args.set)
     # a bad --set is refused before anything runs
     m0 = draw_mission(spec, args.seed, 0)
     scenario_from_data(spec.scenario_data(), f"{spec.scenario_file}", [*m0.overrides, *sets],
                        m0.scenario_seed)
-    out = Path(args.out or Path("out") / "campaign" / f"{spec.name}-seed{args.seed}")
+    if args.out:  # the operator's directory: its parent must exist (nothing made above it)
+        out = writable_dir(args.out, "--out", create=True)
+    else:  # the default place, made as needed
+        out = Path("out") / "campaign" / f"{spec.name}-seed{args.seed}"
+        out.mkdir(parents=True, exist_ok=True)
     checks = list(drawer(spec.kind).checks)
     header = {"name": spec.name, "kind": spec.kind, "spec": spec.file, "digest": spec.digest,
               "scenario": spec.scenario_file, "seed": args.seed, "sets": sets,
               "checks": checks, "targets": spec.targets}
+    if choices:
+        header["choices"] = choices
     store = ResultsDir(out, header)
     store.open()
     wanted = sorted(set(args.only)) if args.only else list(range(n))
@@ -135,6 +145,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     summary["wall_s"] = round(time.perf_counter() - progress.w0, 1)
     (out / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
     print(f"campaign {spec.name} ({spec.file}) seed {args.seed}, {len(records)} missions"
+          f"{', --choice ' + ' '.join(args.choice) if args.choice else ''}"
           f"{', --set ' + ' '.join(sets) if sets else ''}")
     print(format_summary(summary))
     if effects:
@@ -183,6 +194,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     c.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key in every mission (repeatable), e.g. a "
                    "runtime setting under test: runtime.follow.k_s=0.2")
+    c.add_argument("--choice", action="append", default=[],
+                   metavar="NAME=VALUE[:WEIGHT],...",
+                   help="draw a category with these weights in every family instead of the "
+                   "spec's (repeatable); the rest of each mission's draw stays the same, "
+                   "e.g. --choice plan=plan and --choice plan=none: the same missions with "
+                   "and without the AUV's plan")
     c.add_argument("--out", default=None, metavar="DIR",
                    help="output directory (default out/campaign/NAME-seedS); "
                    "(compare) write the comparison as JSON here")

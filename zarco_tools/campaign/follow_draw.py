@@ -40,7 +40,12 @@ from typing import Any, ClassVar
 
 from zarco_tools.campaign.draw import Draw, Judgement
 from zarco_tools.campaign.follow_judge import CHECKS, TARGETS, judge_follow
-from zarco_tools.campaign.physics import least_closing_speed, survey_scale_pct, top_speed
+from zarco_tools.campaign.physics import (
+    least_closing_speed,
+    straight_thrust,
+    survey_scale_pct,
+    top_speed,
+)
 from zarco_tools.campaign.routes import Route, bbox_centre, carry_on, one_side
 from zarco_tools.campaign.spec import CampaignSpec, Family
 
@@ -230,8 +235,7 @@ class FollowDrawer:
                                           _plan_points(planned)]
         # the closing speed of the true plant on every course of the route
         u_max = top_speed(vp.x_u * hull["x_u"], vp.x_uu * hull["x_uu"],
-                          2.0 * tp.fwd_max_n * thrust * math.cos(math.radians(
-                              0.5 * (abs(phi1) + abs(phi2)))))
+                          straight_thrust(tp.fwd_max_n * thrust, mismatch, phi1, phi2))
         closing = least_closing_speed(u_max, actual.courses, cur, math.radians(cur_dir), v)
         d.factors.update({
             "route": route_kind, "plan": plan_kind, "calibration": calibration,

@@ -21,6 +21,17 @@ def top_speed(x_u: float, x_uu: float, thrust_n: float) -> float:
     return (-b + math.sqrt(b * b + 4.0 * a * thrust_n)) / (2.0 * a)
 
 
+def straight_thrust(fwd_max_n: float, mismatch: float, phi1_deg: float,
+                    phi2_deg: float) -> float:
+    """The most surge force (N) two thrusters of nominal full thrust
+    ``fwd_max_n`` give while the boat goes straight: with the mismatch
+    f1 = (1 + Δ) f, f2 = (1 − Δ) f the stronger is held back to the weaker's
+    thrust (the yaw moment must be zero), and each thrust points ``phi_deg``
+    off the boat's axis."""
+    per = fwd_max_n * (1.0 - abs(mismatch))
+    return per * (math.cos(math.radians(phi1_deg)) + math.cos(math.radians(phi2_deg)))
+
+
 def closing_speed(u_max: float, course_rad: float, current_mps: float,
                   current_to_rad: float, v_auv: float) -> float:
     """The boat's top ground speed along ``course_rad`` in a current

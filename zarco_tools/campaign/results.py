@@ -1,11 +1,12 @@
 """A campaign's output directory: ``campaign.json`` (which campaign: spec, its
-digest, seed, the ``--set`` overrides) and ``results.jsonl`` (one JSON object
-per mission, appended and flushed as each arrives).
+digest, seed, the ``--set`` overrides, the ``--choice`` weights) and
+``results.jsonl`` (one JSON object per mission, appended and flushed as each
+arrives).
 
 Resuming: the missions already in ``results.jsonl`` are not run again; a
 line cut short by a kill (the last one, without its newline) is dropped and
 its mission run again.  A directory that holds another campaign (another
-spec, seed or overrides) is refused rather than mixed.
+spec, seed, overrides or choices) is refused rather than mixed.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from zarco_core.config import ConfigError
 HEADER = "campaign.json"
 RESULTS = "results.jsonl"
 #: the header's keys that must match to resume
-SAME = ("name", "kind", "digest", "seed", "sets")
+SAME = ("name", "kind", "digest", "seed", "sets", "choices")
 
 
 def read_results(path: str | Path) -> tuple[dict[int, dict[str, Any]], int]:

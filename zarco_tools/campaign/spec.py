@@ -231,3 +231,47 @@ def load_spec(path: str | Path) -> CampaignSpec:
                 raise ConfigError(file, f"choices.{k}", f"missing (family {fam.name} draws it)")
     drawer.check(spec)
     return spec
+
+
+def parse_choice(text: str, kind: str) -> tuple[str, dict[str, float]]:
+    """``NAME=VALUE[:WEIGHT][,VALUE[:WEIGHT]...]`` (``--choice``): the weights a
+    category is drawn with instead of the spec's (a value without a weight
+    weighs 1); refused with the reason when the name, a value or a weight is
+    not the drawer's."""
+    from zarco_tools.campaign.draw import drawer as drawer_of
+
+    where = "--choice"
+    name, eq, rest = text.partition("=")
+    name = name.strip()
+    allowed = drawer_of(kind).choices
+    if not eq or name not in allowed:
+        raise ConfigError(where, text, f"must be NAME=VALUE[:WEIGHT][,...] with NAME one of "
+                          f"{', '.join(sorted(allowed))}")
+    table: dict[str, Any] = {}
+    for item in rest.split(","):
+        value, colon, w = item.strip().partition(":")
+        try:
+            table[value] = float(w) if colon else 1.0
+        except ValueError:
+            raise ConfigError(where, text, f"weight of {value!r} is not a number: {w!r}"
+                              ) from None
+    return name, _choices(where, name, table, allowed[name])
+
+
+def with_choices(spec: CampaignSpec, choices: dict[str, dict[str, float]]) -> CampaignSpec:
+    """``spec`` drawing the categories ``choices`` with these weights in every
+    family.  A category is picked with one random number whatever its weights,
+    so every other draw of a mission stays the same: the same missions with,
+    say, and without the AUV's plan (except an adaptive mission's route, which
+    draws where the AUV leaves its plan)."""
+    from zarco_tools.campaign.draw import drawer as drawer_of
+
+    if not choices:
+        return spec
+    out = copy.deepcopy(spec)
+    out.choices.update(copy.deepcopy(choices))
+    for fam in out.families:
+        for name in choices:
+            fam.choices.pop(name, None)
+    drawer_of(out.kind).check(out)
+    return out

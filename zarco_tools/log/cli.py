@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
 from pathlib import Path
 
-from zarco_core.paths import PathError, writable_file
+from zarco_core.paths import PathError, oserror_reason, writable_file
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -42,8 +43,16 @@ def cmd_export(args: argparse.Namespace) -> int:
     fmt = "jsonl" if args.jsonl else "csv"
     if args.out:
         writable_file(args.out, "--out")
-        with open(args.out, "w", newline="", encoding="utf-8") as fh:
-            n = export(rec, args.topic, fh, fmt)
+        try:
+            with open(args.out, "w", newline="", encoding="utf-8") as fh:
+                n = export(rec, args.topic, fh, fmt)
+        except OSError as exc:  # a full disk, a quota: nothing half-written is left
+            if Path(args.out).is_file():  # never a device such as /dev/full
+                with contextlib.suppress(OSError):
+                    os.unlink(args.out)
+            print(f"zarco log export: --out: {args.out}: cannot write it: "
+                  f"{oserror_reason(exc)}", file=sys.stderr)
+            return 1
     else:
         n = export(rec, args.topic, sys.stdout, fmt)  # a closed pipe (| head): quiet
     if n == 0:

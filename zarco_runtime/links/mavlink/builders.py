@@ -126,11 +126,13 @@ class Telemetry:
         return int(self.core.clock.utc(now) * 1e6)
 
     def heartbeat(self, now: float) -> Any:
+        """None until the supervisor's first status: a ground station that hears
+        the boat can ask for its mode, arming and home and get them."""
         c = self.core
         st = c.status
         if st is None:
-            state = mav.MAV_STATE_BOOT
-        elif st.failsafes:
+            return None
+        if st.failsafes:
             state = mav.MAV_STATE_CRITICAL
         elif c.armed:
             state = mav.MAV_STATE_ACTIVE

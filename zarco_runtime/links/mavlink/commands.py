@@ -4,7 +4,8 @@ COMMAND_LONG and COMMAND_INT (arming, modes, mission start, return, hold),
 SET_MODE and MANUAL_CONTROL become supervisor commands with source
 ``mavlink:<system id>``; each COMMAND_LONG / COMMAND_INT / SET_MODE gets one
 COMMAND_ACK: ACCEPTED; TEMPORARILY_REJECTED when the supervisor refuses (its
-reason follows as a STATUSTEXT); DENIED for arguments the boat does not take;
+reason goes just before, as a STATUSTEXT to that ground station,
+:meth:`.Core.tell_refusal`); DENIED for arguments the boat does not take;
 UNSUPPORTED for commands it does not know; FAILED when the supervisor did not
 answer.  The requests a ground station makes on connecting (REQUEST_MESSAGE,
 capabilities, message intervals) are answered here without the supervisor.
@@ -36,6 +37,10 @@ from zarco_runtime.links.mavlink.transfer import MissionTransfer
 
 log = logging.getLogger("zarco.mavlink")
 
+#: COMPONENT_ARM_DISARM param2 that asks to force arming or disarming (MAVLink's
+#: 21196; ArduPilot's and MAVProxy's ``arm throttle force`` send 2989 to arm):
+#: never a way round the arming checks here, a forced arm is an ordinary one
+FORCE = (2989.0, 21196.0)
 #: the largest MAVLink 2 message id (24 bits)
 MSG_ID_MAX = 0xFFFFFF
 #: MANUAL_CONTROL → thrust: pass on a change at most this often, a steady command this often (s)
@@ -80,10 +85,10 @@ class Commands:
                 answered = True
                 c.command_ack(link, src, comp, cmd, result)
 
-        def supervise(name: str, args: dict[str, Any]) -> None:
+        def supervise(name: str, args: dict[str, Any], refused_note: str = "") -> None:
             nonlocal answered
             answered = True  # by the task, once the supervisor has answered
-            c.spawn(self._supervised(link, src, comp, cmd, name, args))
+            c.spawn(self._supervised(link, src, comp, cmd, name, args, refused_note))
 
         try:
             self._command(link, m, is_int, src, cmd, ack, supervise)
@@ -94,13 +99,14 @@ class Commands:
 
     def _command(self, link: Link, m: Any, is_int: bool, src: int, cmd: int,
                  ack: Callable[[int], None],
-                 supervise: Callable[[str, dict[str, Any]], None]) -> None:
+                 supervise: Callable[[str, dict[str, Any], str], None]) -> None:
         p1, p2 = float(m.param1), float(m.param2)
         if cmd == mav.MAV_CMD_COMPONENT_ARM_DISARM:
             if p1 == 1.0:
-                supervise("arm", {})
+                supervise("arm", {}, f"arm from mavlink:{src}: force ({p2:g}) does not bypass "
+                          "the arming checks" if p2 in FORCE else "")
             elif p1 == 0.0:
-                supervise("disarm", {})
+                supervise("disarm", {}, "")
             else:
                 ack(mav.MAV_RESULT_DENIED)
         elif cmd == mav.MAV_CMD_DO_SET_MODE:
@@ -110,9 +116,9 @@ class Commands:
             else:
                 self._set_mode(link, src, m.get_srcComponent(), cmd, base, p2)
         elif cmd == mav.MAV_CMD_MISSION_START:
-            supervise("mode", {"mode": Mode.LINES.value})
+            supervise("mode", {"mode": Mode.LINES.value}, "")
         elif cmd == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-            supervise("mode", {"mode": Mode.RETURN.value})
+            supervise("mode", {"mode": Mode.RETURN.value}, "")
         elif cmd == mav.MAV_CMD_NAV_LOITER_UNLIM:
             if is_int:
                 lat, lon = float(m.x) / 1e7, float(m.y) / 1e7
@@ -121,11 +127,13 @@ class Commands:
             args: dict[str, Any] = {"mode": Mode.HOLD.value}
             if math.isfinite(lat) and math.isfinite(lon) and (lat != 0.0 or lon != 0.0):
                 args.update(lat_deg=lat, lon_deg=lon)
-            supervise("mode", args)
+            supervise("mode", args, "")
         elif cmd == mav.MAV_CMD_REQUEST_MESSAGE:
             msg_id = whole(p1, 0, MSG_ID_MAX)
             ack(mav.MAV_RESULT_DENIED if msg_id is None
                 else self.streams.request_message(link, msg_id, p2))
+        elif cmd == mav.MAV_CMD_GET_HOME_POSITION:  # deprecated, still asked
+            ack(self.streams.request_message(link, mav.MAVLINK_MSG_ID_HOME_POSITION, 0.0))
         elif cmd == mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             link.send(self.streams.autopilot_version())
             ack(mav.MAV_RESULT_ACCEPTED)
@@ -162,7 +170,9 @@ class Commands:
         c.spawn(self._supervised(link, src, comp, cmd, "mode", {"mode": mode.value}))
 
     async def _supervised(self, link: Link, src: int, comp: int, cmd: int, name: str,
-                          args: dict[str, Any]) -> None:
+                          args: dict[str, Any], refused_note: str = "") -> None:
+        """``name`` to the supervisor; its verdict as the COMMAND_ACK, after its
+        reason (and ``refused_note``) as status texts when it refuses."""
         c = self.core
         try:
             ack = await c.supervise(name, args, src)
@@ -182,6 +192,9 @@ class Commands:
             c.counters.commands_refused += 1
             result = (mav.MAV_RESULT_FAILED if ack.mode == "unknown"
                       else mav.MAV_RESULT_TEMPORARILY_REJECTED)
+            c.tell_refusal(link, ack)
+            if refused_note:
+                c.send_text(link, int(mav.MAV_SEVERITY_WARNING), refused_note)
         c.command_ack(link, src, comp, cmd, result)
 
     # -------------------------------------------------------------- joystick

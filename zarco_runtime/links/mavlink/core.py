@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 from collections.abc import Coroutine
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -20,7 +21,7 @@ from zarco_core.component import ComponentContext
 from zarco_core.geodesy import LocalFrame
 from zarco_core.messages import CommandAck, Event, Mode, VesselStatus
 from zarco_runtime.links.mavlink.link import Link
-from zarco_runtime.links.mavlink.protocol import mav
+from zarco_runtime.links.mavlink.protocol import mav, text_chunks
 from zarco_runtime.links.mavlink.settings import read_signing_key
 from zarco_runtime.supervision.local import LocalCommands
 
@@ -31,6 +32,8 @@ log = logging.getLogger("zarco.mavlink")
 
 #: an identical STATUSTEXT (or refusal notice) is not repeated within this time (s)
 TEXT_REPEAT_S = 2.0
+#: texts remembered for the repeat check
+MAX_TEXTS = 256
 
 
 @dataclass(slots=True)
@@ -74,6 +77,11 @@ class Core:
         self.failure: BaseException | None = None
         #: the vessel as the supervisor last told it (mode, armed, home, mission)
         self.status: VesselStatus | None = None
+        #: status texts sent to every link: text → when (s), for the repeat check
+        self.texts: dict[str, float] = {}
+        #: refusals told to one link: (link index, text) → when (s)
+        self.told: dict[tuple[int, str], float] = {}
+        self.text_id = 0
 
     # --------------------------------------------------------------- vessel
 
@@ -154,6 +162,53 @@ class Core:
     def mission_ack(self, link: Link, src: int, comp: int, result: int,
                     mission_type: int = 0) -> None:
         link.send(mav.MAVLink_mission_ack_message(src, comp, result, mission_type))
+
+    def broadcast_text(self, severity: int, text: str, now: float) -> bool:
+        """``text`` as STATUSTEXT on every link, unless the same text went out
+        within :data:`TEXT_REPEAT_S`; whether it was sent."""
+        last = self.texts.get(text)
+        if last is not None and now - last < TEXT_REPEAT_S:
+            self.counters.statustext_repeats += 1
+            return False
+        self.texts[text] = now
+        if len(self.texts) > MAX_TEXTS:
+            self.texts = {k: v for k, v in self.texts.items() if now - v < TEXT_REPEAT_S}
+            if len(self.texts) > MAX_TEXTS:  # a flood of distinct texts: forget them
+                self.texts = {text: now}
+        self.counters.statustext += 1
+        for ln in self.links:
+            self.send_text(ln, severity, text)
+        return True
+
+    def send_text(self, link: Link, severity: int, text: str) -> None:
+        """``text`` as STATUSTEXT on ``link`` (chunked, bounded)."""
+        chunks = text_chunks(text)
+        tid = 0
+        if len(chunks) > 1:
+            self.text_id = self.text_id % 65535 + 1
+            tid = self.text_id
+        for i, c in enumerate(chunks):
+            link.send(mav.MAVLink_statustext_message(severity, c, tid, i))
+
+    def tell_refusal(self, link: Link, ack: CommandAck) -> None:
+        """The supervisor's reason for refusing a ground station's command, to that
+        ground station (before its COMMAND_ACK, PARAM_VALUE or MISSION_ACK), in
+        the supervisor's words, unless every link has just had it as the
+        supervisor's event: that event is held back when a source has had more
+        than a few acknowledgements told in the last second, the reply never."""
+        text = f"{ack.name} from {ack.source}: refused: {ack.reason}"
+        now = self.clock.now()
+        last = max(self.texts.get(text, -math.inf),
+                   self.told.get((link.index, text), -math.inf))
+        if now - last < TEXT_REPEAT_S:  # not again within 2 s (a flood: once)
+            self.counters.statustext_repeats += 1
+            return
+        self.told[(link.index, text)] = now
+        if len(self.told) > MAX_TEXTS:
+            self.told = {k: v for k, v in self.told.items() if now - v < TEXT_REPEAT_S}
+            if len(self.told) > MAX_TEXTS:
+                self.told = {(link.index, text): now}
+        self.send_text(link, int(mav.MAV_SEVERITY_WARNING), text)
 
     def event(self, kind: str, text: str) -> None:
         """An event of this endpoint's own: logged, on the bus, and so to every GCS."""

@@ -11,14 +11,15 @@ MAV_AUTOPILOT_GENERIC, system ``system_id``, component ``component_id``.
 
 Out, on every connection:
 
-* HEARTBEAT at 1 Hz: the armed flag, the custom mode of the supervisor's mode
-  (:mod:`.protocol`), system status STANDBY (idle), ACTIVE, or CRITICAL while a
-  failsafe is active;
+* HEARTBEAT at 1 Hz, from the supervisor's first status on (a ground station
+  that hears the boat can ask for its home and get it): the armed flag, the
+  custom mode of the supervisor's mode (:mod:`.protocol`), system status
+  STANDBY (idle), ACTIVE, or CRITICAL while a failsafe is active;
 * streams at rates a GCS sets (SET_MESSAGE_INTERVAL, REQUEST_DATA_STREAM) per
   connection: SYS_STATUS, GPS_RAW_INT (RTK float / fixed as fix types 5 / 6),
   GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SERVO_OUTPUT_RAW (the commanded
   thrust as PWM), MISSION_CURRENT (also at every change), HOME_POSITION (on
-  request);
+  request, and at once when the supervisor's home becomes known or moves);
 * a STATUSTEXT for every Event of the runtime (mode changes, acknowledgements,
   failsafes, faults), an identical text at most every 2 s;
 * MISSION_ITEM_REACHED as each waypoint of the mission is passed.
@@ -46,7 +47,8 @@ HEARTBEAT from a GCS            OperatorHeartbeat(link="mavlink") (``failsafe.li
 
 Arguments are built with the typed command schema (:mod:`zarco_core.commands`).
 COMMAND_ACK results: ACCEPTED; TEMPORARILY_REJECTED when the supervisor refuses
-(its reason follows as a STATUSTEXT); DENIED for arguments the boat does not
+(its reason goes just before, as a STATUSTEXT to the ground station that
+asked, even when the supervisor's event of it is held back); DENIED for arguments the boat does not
 take (the schema's field and reason follow as a STATUSTEXT); UNSUPPORTED for
 commands it does not know; FAILED when the supervisor did not answer.  Mode,
 armed and home are the supervisor's (its VesselStatus), never copies of the
@@ -89,7 +91,7 @@ from zarco_runtime.links.mavlink.commands import Commands
 from zarco_runtime.links.mavlink.core import TEXT_REPEAT_S, Core, Counters
 from zarco_runtime.links.mavlink.link import Link
 from zarco_runtime.links.mavlink.param_protocol import ParamProtocol
-from zarco_runtime.links.mavlink.protocol import event_severity, mav, text_chunks
+from zarco_runtime.links.mavlink.protocol import event_severity, mav
 from zarco_runtime.links.mavlink.rtcm import RtcmReassembler
 from zarco_runtime.links.mavlink.streams import Streams
 from zarco_runtime.links.mavlink.transfer import MissionTransfer
@@ -101,8 +103,6 @@ log = logging.getLogger("zarco.mavlink")
 
 #: a GCS heard again after this long is announced again (s)
 GCS_QUIET_S = 5.0
-#: texts remembered for the repeat check
-MAX_TEXTS = 256
 
 
 class MavlinkEndpoint:
@@ -122,8 +122,6 @@ class MavlinkEndpoint:
         self.rtcm = RtcmReassembler()
         self.dir_seq = -1
         self.unsigned_t: dict[tuple[int, str], float] = {}
-        self.texts: dict[str, float] = {}
-        self.text_id = 0
         self.gcs_seen: dict[int, float] = {}
         ctx.listen(Event, self._on_event)
         ctx.listen(GpsFix, self.telemetry.on_fix)
@@ -278,7 +276,12 @@ class MavlinkEndpoint:
     # ============================================================ bus → GCS
 
     def _on_status(self, st: VesselStatus) -> None:
-        self.core.status = st
+        core = self.core
+        home = core.home
+        core.status = st
+        if core.home is not None and core.home != home:
+            # a ground station that asked before home was known gets it now
+            self.streams.broadcast("HOME_POSITION", core.clock.now())
         self.transfer.on_status(st)
         self.telemetry.measure_load()
 
@@ -290,23 +293,4 @@ class MavlinkEndpoint:
 
     def _on_event(self, e: Event) -> None:
         core = self.core
-        now = core.clock.now()
-        last = self.texts.get(e.text)
-        if last is not None and now - last < TEXT_REPEAT_S:
-            core.counters.statustext_repeats += 1
-            return
-        self.texts[e.text] = now
-        if len(self.texts) > MAX_TEXTS:
-            self.texts = {k: v for k, v in self.texts.items() if now - v < TEXT_REPEAT_S}
-            if len(self.texts) > MAX_TEXTS:  # a flood of distinct texts: forget them
-                self.texts = {e.text: now}
-        sev = event_severity(e.kind, e.text)
-        chunks = text_chunks(e.text)
-        tid = 0
-        if len(chunks) > 1:
-            self.text_id = self.text_id % 65535 + 1
-            tid = self.text_id
-        core.counters.statustext += 1
-        for ln in core.links:
-            for i, c in enumerate(chunks):
-                ln.send(mav.MAVLink_statustext_message(sev, c, tid, i))
+        core.broadcast_text(event_severity(e.kind, e.text), e.text, core.clock.now())

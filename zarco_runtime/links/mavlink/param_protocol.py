@@ -80,7 +80,9 @@ class ParamProtocol:
             c.counters.params_set += 1  # the new value goes out with its ParamChange
             return
         c.counters.params_refused += 1
-        self.send_value(link, p)  # unchanged; the reason went out as a status text
+        if ack is not None:
+            c.tell_refusal(link, ack)
+        self.send_value(link, p)  # unchanged, after the reason
 
     def on_change(self, ch: ParamChange) -> None:
         """A parameter changed (whoever asked): every ground station hears it."""

@@ -88,6 +88,18 @@ TABLE: tuple[tuple[str, str], ...] = (
 )
 
 
+def shortest(x: float) -> float:
+    """The number with the fewest significant digits that is the same float32 as
+    ``x`` (a ground station's 0.1 arrives as 0.10000000149011612: the
+    configuration gets 0.1)."""
+    x32 = f32(x)
+    for digits in range(1, 10):
+        y = float(f"{x:.{digits}g}")
+        if f32(y) == x32:
+            return y
+    return float(x)
+
+
 def f32(x: float) -> float:
     """``x`` rounded to a float32, as it travels in PARAM_VALUE / PARAM_SET."""
     return float(struct.unpack("<f", struct.pack("<f", x))[0])
@@ -154,7 +166,7 @@ class ParamTable:
             for bound in (info.lo, info.hi):
                 if bound is not None and x != bound and x == f32(bound):
                     return float(bound)
-            return float(x)
+            return shortest(x)
         k = round(x)
         if abs(x - k) > 1e-6:
             raise ValueError(f"{p.name}: must be a whole number, got {x:g}")

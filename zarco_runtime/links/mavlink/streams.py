@@ -107,6 +107,15 @@ class Streams:
         if name == "HEARTBEAT" and self.after_heartbeat is not None:
             self.after_heartbeat(link)
 
+    def broadcast(self, name: str, now: float) -> None:
+        """Send ``name`` now on every connected link (nothing when it has nothing
+        to say), in order with the replies."""
+        for link in self.core.links:
+            if link.connected:
+                msg = self.build(name, now)  # one message object per link
+                if msg is not None:
+                    link.send(msg)
+
     # ------------------------------------------------------------ requests
 
     def on_request_data_stream(self, link: Link, m: Any) -> None:

@@ -180,6 +180,8 @@ class MissionTransfer:
                 self.broadcast_current()
             else:
                 c.counters.missions_refused += 1
+                if ack is not None:
+                    c.tell_refusal(up.link, ack)
                 c.mission_ack(up.link, up.sysid, up.compid,
                               mav.MAV_MISSION_ERROR if ack is not None and ack.mode == "unknown"
                               else mav.MAV_MISSION_INVALID)
@@ -196,6 +198,8 @@ class MissionTransfer:
             log.exception("mavlink: mission clear from %d", src)
             ack = None
         if ack is None or not ack.ok:
+            if ack is not None:
+                c.tell_refusal(link, ack)
             c.mission_ack(link, src, comp, mav.MAV_MISSION_ERROR, mtype)
             return
         self.items, self.wp_seqs, self.wps = [], [], ()

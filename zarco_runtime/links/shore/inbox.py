@@ -9,7 +9,9 @@ never holds the control loop for more than a few milliseconds at a time.
 Each kind has its own bound, so a flood of one never crowds out another:
 
 * commands: a FIFO of :data:`COMMANDS_MAX` queries; one more is refused at
-  once ("busy") by the poster;
+  once ("busy") by the poster.  ``stop`` has a FIFO of its own
+  (:data:`STOPS_MAX`), handled before anything else: a flood of other
+  commands never delays or refuses a stop;
 * operator heartbeats: only the latest per user is kept (what the
   link-lost failsafe needs is that one was heard), for at most
   :data:`USERS_MAX` users at a time; the others are counted and dropped;
@@ -33,6 +35,8 @@ from typing import Any
 
 #: queries waiting for the event loop; one more is answered "busy" at once
 COMMANDS_MAX = 1024
+#: stop queries waiting (ahead of everything else)
+STOPS_MAX = 64
 #: heartbeats waiting (the latest of each user)
 USERS_MAX = 16
 #: RTCM chunks waiting
@@ -82,6 +86,7 @@ class Inbox:
         self.on_fault = on_fault
         self._lock = threading.Lock()
         self._commands: deque[Query] = deque()
+        self._stops: deque[Query] = deque()
         self._beats: dict[str, Heartbeat] = {}
         self._rtcm: deque[Corrections] = deque()
         self._scheduled = False
@@ -97,10 +102,13 @@ class Inbox:
             if self._closed:
                 return False
             if isinstance(item, Query):
-                if len(self._commands) >= COMMANDS_MAX:
-                    self.dropped["commands_busy"] += 1
+                stop = item.key.endswith("/cmd/stop")
+                queue, bound = (self._stops, STOPS_MAX) if stop else \
+                    (self._commands, COMMANDS_MAX)
+                if len(queue) >= bound:
+                    self.dropped["stops_busy" if stop else "commands_busy"] += 1
                     return False
-                self._commands.append(item)
+                queue.append(item)
             elif isinstance(item, Heartbeat):
                 if item.user not in self._beats and len(self._beats) >= USERS_MAX:
                     self.dropped["heartbeats_users"] += 1
@@ -123,10 +131,12 @@ class Inbox:
         return True
 
     def _take(self, n: int) -> list[Item]:
-        """Up to ``n`` items, heartbeats first (the cheapest, and the link's life),
-        then corrections and commands alternately."""
+        """Up to ``n`` items: stops first, then heartbeats (the cheapest, and the
+        link's life), then corrections and commands alternately."""
         with self._lock:
             out: list[Item] = []
+            while self._stops and len(out) < n:
+                out.append(self._stops.popleft())
             while self._beats and len(out) < n:
                 out.append(self._beats.pop(next(iter(self._beats))))
             while (self._rtcm or self._commands) and len(out) < n:
@@ -150,7 +160,7 @@ class Inbox:
                 except Exception as exc:  # one bad item never drops another
                     self.on_fault(it, exc)
         with self._lock:
-            more = bool(self._commands or self._beats or self._rtcm)
+            more = bool(self._stops or self._commands or self._beats or self._rtcm)
             if not more or self._closed:
                 self._scheduled = False
                 return
@@ -161,7 +171,8 @@ class Inbox:
         """Stop accepting; the queries not yet handled (they still need a reply)."""
         with self._lock:
             self._closed = True
-            left = list(self._commands)
+            left = [*self._stops, *self._commands]
+            self._stops.clear()
             self._commands.clear()
             self._beats.clear()
             self._rtcm.clear()

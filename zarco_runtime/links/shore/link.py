@@ -326,13 +326,19 @@ class ShoreLink:
             self.counters["rtcm_bytes"] += len(item.data)
             self.bus.publish(RtcmCorrections(self.clock.now(), "shore", item.data))
 
-    def _fault(self, item: Item | None, exc: BaseException) -> None:
-        """An exception while handling ``item``: counted, a refusal for a command."""
+    def _fault(self, item: Item | None, exc: BaseException, sent: bool = False) -> None:
+        """An exception while handling ``item``: counted, a refusal for a command
+        (a ``stop`` the link failed to read is sent anyway, unless ``sent``: the
+        failure was in sending it)."""
         self.counters["faults"] += 1
         self.rlog.warning(f"fault:{type(exc).__name__}",
                           f"shore: {type(exc).__name__} handling "
                           f"{type(item).__name__ if item else 'a command'}: {exc}")
         if isinstance(item, Query):
+            if item.key == f"{self.key}/cmd/stop" and not sent:
+                with contextlib.suppress(Exception):
+                    self._stop_anyway(item)  # a stop still stops
+                    return
             self.counters["commands_refused"] += 1
             self._reply(item.query, item.key, False, None, self._mode(),
                         f"refused: the link failed to handle it ({type(exc).__name__})")
@@ -343,6 +349,9 @@ class ShoreLink:
             r = requests.request(q.key, self.key, q.payload, q.attachment, q.size,
                                  q.att_size)
         except BadRequest as exc:
+            if q.key == f"{self.key}/cmd/stop":
+                self._stop_anyway(q)
+                return
             self.counters["commands_bad"] += 1
             self._reply(q.query, q.key, False, f"shore-{next(_ids)}", self._mode(),
                         f"bad request: {exc}")
@@ -356,6 +365,20 @@ class ShoreLink:
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
 
+    def _stop_anyway(self, q: Query) -> None:
+        """``stop`` is always accepted: whatever its payload or attachment, it is
+        sent (with ``{}``; the attachment's user and id when they can be read)."""
+        self.counters["stops_unread"] += 1
+        try:
+            user, cid = requests.attachment(q.attachment, q.att_size)
+        except BadRequest:
+            user, cid = requests.peek_user(q.attachment), None
+        cid = cid or f"shore-{next(_ids)}"
+        task = asyncio.ensure_future(self._send_command(
+            q, "stop", b"{}", f"shore:{user}" if user else "shore", cid))
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+
     async def _send_command(self, q: Query, name: str, args: bytes,
                             source: str, cid: str) -> None:
         try:
@@ -365,7 +388,7 @@ class ShoreLink:
             self._reply(q.query, q.key, False, cid, self._mode(), "shore link stopping")
             raise
         except Exception as exc:
-            self._fault(q, exc)
+            self._fault(q, exc, sent=True)
             return
         self.counters["commands_accepted" if ack.ok else "commands_refused"] += 1
         self._reply(q.query, q.key, ack.ok, ack.id, ack.mode, ack.reason)

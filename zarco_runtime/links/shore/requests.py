@@ -19,11 +19,14 @@ operator heartbeat     at most :data:`MAX_HEARTBEAT_BYTES` bytes of UTF-8
                        JSON, an object; ``user`` as above, ``t`` a number
 =====================  ===================================================
 
-The decoding is msgspec's (C, bounded recursion): a payload nested thousands
-deep is refused as quickly as any other.  What each command's fields must
-be is the command schema's (:mod:`zarco_core.commands`, applied when the
-command is sent to the supervisor); this module only makes sure that what
-it passes on is a small JSON object.
+The nesting is counted on the raw bytes before anything is decoded
+(:func:`zarco_core.commands.nesting_ok`, a few C-speed passes), so a payload
+nested thousands deep is refused as quickly as any other.  What each
+command's fields must be is the command schema's (:mod:`zarco_core.commands`,
+applied when the command is sent to the supervisor): this module only makes
+sure that what it passes on is a small JSON object, and leaves its fields'
+values unread (msgspec.Raw), so that a number beyond a float's range is
+refused by the schema naming its field rather than here as a whole payload.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from typing import Any
 
 import msgspec
 
-from zarco_core.commands import MAX_DEPTH, MAX_PAYLOAD_BYTES
+from zarco_core.commands import MAX_DEPTH, MAX_PAYLOAD_BYTES, nesting_ok
 
 #: a command payload larger than this is refused unread (bytes)
 MAX_COMMAND_BYTES = MAX_PAYLOAD_BYTES
@@ -64,7 +67,7 @@ class Request:
     """A command as read from a query."""
 
     name: str
-    args: dict[str, Any]
+    args: dict[str, msgspec.Raw]
     user: str
     id: str | None
 
@@ -143,7 +146,8 @@ def peek_user(att: bytes) -> str:
     except Exception:
         return ""
     user = meta.get("user") if isinstance(meta, dict) else None
-    return user if isinstance(user, str) and len(user) <= MAX_NAME_CHARS else ""
+    return user if isinstance(user, str) and len(user) <= MAX_NAME_CHARS \
+        and user.isprintable() else ""
 
 
 def command_name(key: str, prefix: str) -> str:
@@ -166,8 +170,27 @@ def request(key: str, prefix: str, payload: bytes, att: bytes,
     n = len(payload) if size is None else size
     if n > MAX_COMMAND_BYTES:
         raise BadRequest("payload", f"{n} bytes, more than {MAX_COMMAND_BYTES}")
-    args = json_object(payload, "payload", MAX_COMMAND_BYTES) if payload.strip() else {}
-    return Request(name, args, user, cid)
+    return Request(name, command_object(payload) if payload.strip() else {}, user, cid)
+
+
+_FIELDS = msgspec.json.Decoder(dict[str, msgspec.Raw])
+
+
+def command_object(payload: bytes) -> dict[str, msgspec.Raw]:
+    """A command payload checked as a bounded JSON object, its fields left unread:
+    their values (a number beyond a float's range, ``1e999``, included) are the
+    command schema's to judge, which names the field."""
+    if not nesting_ok(payload, MAX_NESTING):
+        raise BadRequest("payload", f"not JSON, or nested deeper than {MAX_NESTING} levels")
+    try:
+        return _FIELDS.decode(payload)
+    except msgspec.ValidationError as exc:
+        got = str(exc).rpartition("got `")[2].rstrip("`")
+        what = {"array": "an array", "str": "a string", "int": "a number", "float": "a number",
+                "bool": "a boolean", "null": "null"}.get(got, got)
+        raise BadRequest("payload", f"must be a JSON object, got {what}") from None
+    except (msgspec.DecodeError, RecursionError) as exc:
+        raise BadRequest("payload", f"not UTF-8 JSON ({exc})") from None
 
 
 def heartbeat(payload: bytes) -> str:

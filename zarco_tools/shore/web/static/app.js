@@ -188,8 +188,10 @@ function update() {
   $("auv-status").textContent = a ? a.status + (aAge > 30 ? ` (${aAge.toFixed(0)} s ago)` : "") : "no track";
   $("auv-status").className = "pill " + (a ? {tracking: "ok", turning: "warn", acquiring: "warn"}[a.status] || "bad" : "off");
   $("auv-detail").textContent = a ? `AUV ${fmt(a.speed_mps, 2, " m/s")}, course ${fmt(a.course_deg, 0, "°")}` +
-    (a.pos_cov_m2 ? `, 1σ ${Math.sqrt(Math.max(a.pos_cov_m2[0] || 0, a.pos_cov_m2[2] || 0)).toFixed(1)} m` : "") +
-    (a.sound_speed_mps ? `, c ${a.sound_speed_mps.toFixed(0)} m/s` : "") : "";
+    (a.pos_cov_m2 ? `, 1σ ${Math.sqrt(Math.max(a.pos_cov_m2[0] || 0, a.pos_cov_m2[2] || 0)).toFixed(1)} m` : "") : "";
+  $("sound-speed").textContent = a && typeof a.sound_speed_mps === "number"
+    ? `${a.sound_speed_mps.toFixed(1)}` + (typeof a.sound_speed_sigma_mps === "number"
+      ? ` ± ${a.sound_speed_sigma_mps.toFixed(1)}` : "") + " m/s" : "—";
   spark(v);
   devices(v, now);
   events(v);
