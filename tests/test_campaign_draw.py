@@ -17,7 +17,7 @@ from drivers.sim.thruster_model import U_MAX, thruster_thrust
 from zarco_core.config import ConfigError, parse_override
 from zarco_tools.campaign.draw import draw_mission
 from zarco_tools.campaign.follow_judge import judge_follow
-from zarco_tools.campaign.physics import straight_thrust
+from zarco_tools.campaign.physics import straight_thrust, survey_scale_pct
 from zarco_tools.campaign.spec import load_spec, parse_choice, with_choices
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -283,6 +283,29 @@ def test_sound_speed_with_two_beacons_is_not_observable() -> None:
     three = {**FACT, "sound_speed_error_pct": 0.8}
     assert "sound_speed" in judge_follow(TARGETS, three,
                                          report(sound_speed_error_max_pct=0.8)).fails
+
+
+def test_a_survey_whose_own_scale_is_off_makes_the_sound_speed_unobservable() -> None:
+    # three beacons 120 m apart, each 2 m off: the surveyed network is 1.6 %
+    # larger than the true one, and no timing tells that from faster sound
+    true = [(26.5, 120.49), (4.08, 4.52), (105.77, 69.96)]
+    surveyed = [(26.0, 122.4), (2.3, 4.0), (105.3, 71.9)]
+    scale = survey_scale_pct(true, surveyed)
+    assert scale == pytest.approx(1.62, abs=0.01)
+    # a rotated, shifted copy has the true scale; a 0.2 % larger one, that
+    c, s = math.cos(0.3), math.sin(0.3)
+    turned = [(c * n - s * e + 5.0, s * n + c * e - 3.0) for n, e in true]
+    assert survey_scale_pct(true, turned) == pytest.approx(0.0, abs=1e-9)
+    assert survey_scale_pct(true, [(1.002 * n, 1.002 * e) for n, e in turned]
+                            ) == pytest.approx(0.2, abs=1e-9)
+    off = {**FACT, "calibration": "survey", "survey_scale_pct": scale}
+    j = judge_follow(TARGETS, off, report(sound_speed_error_max_pct=0.9))
+    assert "sound_speed" in j.exempt and "+1.62 %" in j.exempt["sound_speed"]
+    assert "sound_speed" not in j.fails
+    # a survey off by less than the target's own tolerance is judged
+    near = {**FACT, "calibration": "survey", "survey_scale_pct": -0.15}
+    assert "sound_speed" in judge_follow(TARGETS, near,
+                                         report(sound_speed_error_max_pct=0.3)).fails
 
 
 def test_nan_in_a_report_fails_the_json_check() -> None:

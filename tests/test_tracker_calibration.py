@@ -21,6 +21,7 @@ from zarco_core.auv_messages import AuvTrack
 from zarco_core.lbl import LblNetworkParams
 from zarco_runtime.tracking.calibration import SoundSpeedEstimator
 from zarco_runtime.tracking.params import Network, TrackerParams
+from zarco_runtime.tracking.tracker import SURVEY_STEP_M
 
 SURVEY = [[100.0, 80.0], [300.0, 80.0], [300.0, 105.0], [100.0, 105.0], [100.0, 130.0],
           [300.0, 130.0]]
@@ -168,3 +169,22 @@ def test_beacons_surveyed_2_m_off_never_give_a_converged_wrong_sound_speed(
     for tr in later:
         assert (abs(tr.sound_speed_mps - c_true) <= 0.002 * c_true
                 or not tr.sound_speed_converged)
+    tracker = r.tracker
+    cal = tracker.cal
+    assert cal is not None
+    if cal.hypothesis == "survey":
+        # the ranges are computed with the beacons where the survey hypothesis
+        # puts them, nearer the truth on the whole than the survey
+        net, net0 = tracker.net, tracker.net0
+        for j, (dn, de) in enumerate(cal.offsets()):
+            assert abs(net.north[j] - net0.north[j] - dn) <= SURVEY_STEP_M
+            assert abs(net.east[j] - net0.east[j] - de) <= SURVEY_STEP_M
+            assert net.d[j] == pytest.approx(math.dist(
+                (net.north[j], net.east[j], net.depth[j]),
+                (net.north[net.listener], net.east[net.listener], net.depth[net.listener])))
+
+        def rms(north: tuple[float, ...], east: tuple[float, ...]) -> float:
+            return math.sqrt(sum((n - b[0]) ** 2 + (e - b[1]) ** 2
+                                 for n, e, b in zip(north, east, FOUR, strict=True)) / 4)
+
+        assert rms(net.north, net.east) < rms(net0.north, net0.east)

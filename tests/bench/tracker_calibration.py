@@ -13,7 +13,10 @@ acoustic feed, and measures against the simulator's truth:
   largest value: the target is 0.2 %), and ĉ's σ and whether it says
   ``converged`` then;
 * the filter's position, carried to each moment along its velocity, against
-  the AUV (median and 95th percentile over the tracked time).
+  the AUV (median and 95th percentile over the tracked time);
+* per mission (on stderr), the survey's own scale: how much larger the
+  surveyed network is than the true one, which no timing can tell from a
+  faster sound.
 
 Figures by calibration error and by number of beacons, over every seed;
 progress on stderr; one JSON line at the end.

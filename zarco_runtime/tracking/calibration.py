@@ -332,6 +332,11 @@ class SoundSpeedEstimator:
         hypothesis with biases is the reported one)."""
         return self.best.bias(j)
 
+    def offsets(self) -> list[tuple[float, float]]:
+        """Each beacon's estimated survey correction (north, east, m; zeros
+        unless the survey hypothesis is the reported one)."""
+        return [self.best.offset(j) for j in range(self.net0.n)]
+
     def start(self, t: float, x: float, y: float, vx: float, vy: float,
               P4: list[list[float]]) -> None:
         """(Re)start every hypothesis's kinematics (:meth:`Calibration.start`)."""

@@ -15,6 +15,7 @@ distances d_i, physical reply windows).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 from zarco_core.config import spec
@@ -241,6 +242,19 @@ class Network:
         tol = self.tol
         return replace(self, c=c, reply_hi=tuple(
             self.tau[i] + 2.0 * self.d[i] / c + tol for i in range(len(self.ids))))
+
+    def corrected(self, c: float, offsets: Sequence[tuple[float, float]]) -> Network:
+        """The network with sound speed ``c`` (m/s) and each beacon moved by
+        its (north, east) offset (m) from the configured position: the
+        listener distances and reply windows recomputed."""
+        north = tuple(n + o[0] for n, o in zip(self.north, offsets, strict=True))
+        east = tuple(e + o[1] for e, o in zip(self.east, offsets, strict=True))
+        k = self.listener
+        d = tuple(math.dist((north[i], east[i], self.depth[i]),
+                            (north[k], east[k], self.depth[k])) for i in range(len(self.ids)))
+        tol = self.tol
+        return replace(self, north=north, east=east, d=d, c=c, reply_hi=tuple(
+            self.tau[i] + 2.0 * d[i] / c + tol for i in range(len(self.ids))))
 
     @property
     def n(self) -> int:

@@ -3,7 +3,8 @@
 :class:`AuvTracker` glues the chain, one event at a time::
 
     AcousticEvent ─▶ clock check (.timemap) ─▶ CycleAssembler (.cycles) ─▶
-    cycle_ranges at the estimated sound speed, less the estimated range bias
+    cycle_ranges at the estimated sound speed and beacon positions, less the
+    estimated range bias
     (.fix, .calibration) ─▶ fix assembly (.assembly: motion-bias correction,
     circle fix, mirror choice, joint fix, range-only) ─▶ filter (an IMM of a
     quiet coordinated turn, manoeuvring and turning models, or one CV filter;
@@ -97,6 +98,8 @@ from zarco_runtime.tracking.timemap import ClockCheck, TimeMap
 
 #: the ranges are recomputed at a new sound speed once the estimate moved this far (m/s)
 SOUND_SPEED_STEP_MPS = 0.01
+#: the beacons' positions move with the survey estimate once it moved this far (m)
+SURVEY_STEP_M = 0.05
 #: 1σ (deg/s) of the turn rate the two fixed-rate turning models start a turn with
 TURN_RATE_SIGMA_DPS = 2.0
 #: the measured noise scale learns from updates while the IMM's probability of a
@@ -124,6 +127,8 @@ class AuvTracker:
         self.cal: SoundSpeedEstimator | None = (SoundSpeedEstimator(params, self.net0)
                                                 if params.calibrate else None)
         self._cal_restart = True
+        #: the survey corrections the network's positions carry (north, east, m)
+        self._offsets: list[tuple[float, float]] = [(0.0, 0.0)] * self.net0.n
         self.depth = params.auv_depth_m
         self.cycles = CycleAssembler(self.net, params.auv_depth_m, params.max_range_m,
                                      params.sequence, self._predict_range, 4.0,
@@ -350,7 +355,9 @@ class AuvTracker:
     def _calibrate(self, cyc: Cycle, t_em: float, idx: int, bias: float, reply: bool,
                    var_i: float, var_l: float) -> None:
         """Fold an accepted cycle's ranges into the calibration (``reply``: its
-        listener range too) and move the network to the new sound speed."""
+        listener range too) and move the network to the new sound speed and,
+        when the survey hypothesis is the reported one, the beacons to their
+        corrected positions (the sound speed it estimates goes with them)."""
         cal = self.cal
         if cal is None:
             return
@@ -366,8 +373,13 @@ class AuvTracker:
         if reply and idx != self.net0.listener:
             cal.listener_range(idx, rg0.r_l - bias, var_l)
         c = cal.sound_speed_mps
-        if abs(c - self.net.c) > SOUND_SPEED_STEP_MPS:
-            self._set_network(self.net0.with_sound_speed(c))
+        offs = cal.offsets()
+        if abs(c - self.net.c) > SOUND_SPEED_STEP_MPS or max(
+                (abs(a[0] - b[0]) + abs(a[1] - b[1]) for a, b in zip(offs, self._offsets,
+                                                                    strict=True)),
+                default=0.0) > SURVEY_STEP_M:
+            self._offsets = offs
+            self._set_network(self.net0.corrected(c, offs))
 
     def _set_network(self, net: Network) -> None:
         self.net = net

@@ -40,7 +40,12 @@ from typing import Any, ClassVar
 
 from zarco_tools.campaign.draw import Draw, Judgement
 from zarco_tools.campaign.follow_judge import CHECKS, TARGETS, judge_follow
-from zarco_tools.campaign.physics import least_closing_speed, straight_thrust, top_speed
+from zarco_tools.campaign.physics import (
+    least_closing_speed,
+    straight_thrust,
+    survey_scale_pct,
+    top_speed,
+)
 from zarco_tools.campaign.routes import Route, bbox_centre, carry_on, one_side
 from zarco_tools.campaign.spec import CampaignSpec, Family
 
@@ -239,6 +244,8 @@ class FollowDrawer:
             "planned_turns_deg": [round(a) for a in actual.turns_deg],
             "sound_speed_error_pct": c_err,
             "survey_error_max_m": round(max(math.hypot(*o) for o in offsets), 3),
+            "survey_scale_pct": round(survey_scale_pct(
+                [(b[0], b[1]) for b in world_beacons], [(b[0], b[1]) for b in beacons]), 3),
             "turnaround_error_max_ms": round(max(abs(a - b) for a, b in
                                                  zip(tau_true, tau_cfg, strict=True))
                                              * 1000.0, 3),

@@ -17,7 +17,10 @@ exempt (physics or observability forbids it; the reason carries the figure):
   the AUV is heard;
 * ``sound_speed``: the tracker's sound speed within ``sound_speed_error_pct``
   of the truth from 300 s after acquisition (exempt with two beacons, where it
-  is not observable, when the configured value is off);
+  is not observable, when the configured value is off; and when the surveyed
+  network's own scale is off the true one's by more than that — timings
+  cannot tell a larger network with faster sound:
+  :func:`~zarco_tools.campaign.physics.survey_scale_pct`);
 * ``json``: the report is valid JSON (no NaN).
 
 A mission whose least closing speed (:mod:`zarco_tools.campaign.physics`) is
@@ -105,9 +108,14 @@ def judge_follow(tg: dict[str, float], factors: dict[str, Any], report: dict[str
     c_off = abs(float(factors.get("sound_speed_error_pct") or 0.0))
     if err is not None:
         if err > tg["sound_speed_error_pct"]:
+            scale = float(factors.get("survey_scale_pct") or 0.0)
             if factors.get("beacons") == 2 and c_off > tg["sound_speed_error_pct"]:
                 exempt["sound_speed"] = (f"not observable with 2 beacons: error {err:.2f} % "
                                          f"(configured {c_off:.2f} % off)")
+            elif abs(scale) > tg["sound_speed_error_pct"]:
+                exempt["sound_speed"] = (f"not observable: the surveyed network is "
+                                         f"{scale:+.2f} % the true one's size: error "
+                                         f"{err:.2f} %")
             else:
                 fail("sound_speed", f"error {err:.2f} % > {tg['sound_speed_error_pct']:g} % "
                                     "from 300 s after acquisition")

@@ -49,3 +49,29 @@ def least_closing_speed(u_max: float, courses_rad: list[float], current_mps: flo
     """The least closing speed (m/s) over the route's courses."""
     return min(closing_speed(u_max, c, current_mps, current_to_rad, v_auv)
                for c in courses_rad)
+
+
+def survey_scale_pct(true_ne: list[tuple[float, float]],
+                     surveyed_ne: list[tuple[float, float]]) -> float:
+    """How much larger (%) the surveyed network is than the true one: the
+    scale of the least-squares similarity (rotation, translation, scale) taking
+    the true beacons' horizontal positions (north, east, m) onto the surveyed
+    ones.  Acoustic timings cannot tell a network s times larger with sound s
+    times faster: a tracker that trusts the survey can know the sound speed
+    no better than this."""
+    n = len(true_ne)
+    if n < 2 or len(surveyed_ne) != n:
+        return 0.0
+    an = sum(p[0] for p in true_ne) / n
+    ae = sum(p[1] for p in true_ne) / n
+    bn = sum(p[0] for p in surveyed_ne) / n
+    be = sum(p[1] for p in surveyed_ne) / n
+    # with complex numbers a, b about their centroids: b ≈ z a, |z| the scale
+    num = 0j
+    den = 0.0
+    for (tn, te), (sn, se) in zip(true_ne, surveyed_ne, strict=True):
+        a = complex(tn - an, te - ae)
+        b = complex(sn - bn, se - be)
+        num += b * a.conjugate()
+        den += abs(a) ** 2
+    return (abs(num) / den - 1.0) * 100.0 if den > 0.0 else 0.0
