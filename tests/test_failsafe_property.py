@@ -34,7 +34,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from drivers.sim.faults import FaultSpec
@@ -175,6 +175,12 @@ class Judge:
        st.sampled_from(["idle", "continue"]), st.sampled_from(["idle", "continue"]),
        st.sampled_from(["idle", "continue", "hold", "return"]), st.floats(0.0, 4.0),
        st.integers(1, 1000))
+# a compass that flaps while the GPS is unplugged: the runtime closes its compass
+# port to reopen it while the simulated compass still sends (it once crashed the rig)
+@example([FaultSpec(kind="unplug", device="gps", at_s=4.087, duration_s=0.218, fraction=0.2)],
+         [FaultSpec(kind="silence", device="compass", at_s=3.0, duration_s=3.0),
+          FaultSpec(kind="silence", device="compass", at_s=7.357, duration_s=0.680)],
+         "idle", "idle", "idle", 0.0, 1)
 def test_no_thrust_while_driving_is_unsafe(plan: list[FaultSpec], flaps: list[FaultSpec],
                                            heading: str, position: str, thrusters: str,
                                            clear_after_s: float, seed: int) -> None:

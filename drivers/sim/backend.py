@@ -27,6 +27,7 @@ from drivers.sim.faults import FaultPlan, FaultSpec
 from drivers.sim.ports import SimPorts
 from drivers.sim.world import SimWorld
 from drivers.thruster_protocol import parse_pzthr
+from drivers.transports import TransportError
 from zarco_core.clock import Clock
 
 #: rate of $PZTHS status from the simulated thruster controller (Hz)
@@ -86,7 +87,12 @@ class SimBackend:
             chunks, _gap = plan.shape(name, t, data)
             data = junk + b"".join(chunks)
         if data:
-            self.ports.device_end(name).write_nowait(data)
+            try:
+                self.ports.device_end(name).write_nowait(data)
+            except TransportError:
+                # the runtime has its end closed (reopening the port after a fault):
+                # a real device goes on sending into the void, and so does this one
+                self.counters[f"{name}_bytes_unheard"] += len(data)
 
     def _gps(self, t: float) -> None:
         if self.plan.faults:
