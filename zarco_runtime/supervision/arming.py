@@ -40,15 +40,24 @@ def disarm(sup: Supervisor, reason: str, *, by_failsafe: bool = False) -> None:
         sup.event("arming", f"disarmed: {reason}")
 
 
+#: how an operator reads each device of the configuration in a refusal
+_DEVICE_NAMES = {"thrusters": "thrusters", "gps": "GPS", "compass": "compass",
+                 "buoy": "buoy feed"}
+
+
+def disabled(sup: Supervisor, *devices: str) -> str:
+    """The refusal for the first of ``devices`` the configuration disables ("" if none)."""
+    for d in devices:
+        if not getattr(sup.caps, d):
+            return f"{_DEVICE_NAMES[d]} disabled (devices.{d}.enabled = false)"
+    return ""
+
+
 def arm_refusal(sup: Supervisor) -> str:
     """Why the boat cannot be armed now ("" when it can)."""
-    caps = sup.caps
-    if not caps.thrusters:
-        return "thrusters disabled (devices.thrusters.enabled = false)"
-    if not caps.gps:
-        return "GPS disabled (devices.gps.enabled = false)"
-    if not caps.compass:
-        return "compass disabled (devices.compass.enabled = false)"
+    why = disabled(sup, "thrusters", "gps", "compass")
+    if why:
+        return why
     n = sup.nav.value
     if n is None or not n.pos_valid:
         return "no valid position"
@@ -67,23 +76,21 @@ def arm_refusal(sup: Supervisor) -> str:
 
 def cannot(sup: Supervisor, mode: Mode) -> str:
     """Why ``mode`` cannot be entered now ("" when it can)."""
-    caps = sup.caps
     if mode is Mode.IDLE:
         return ""
     if not sup.armed:
         return "disarmed"
-    if not caps.thrusters:
-        return "thrusters disabled (devices.thrusters.enabled = false)"
+    if not sup.caps.thrusters:
+        return disabled(sup, "thrusters")
     if "thruster_silent" in sup.failsafes.active:
         return "the thruster controller is not answering"
     if "component_failed" in sup.failsafes.active:
         return sup.failsafes.active["component_failed"]
     if mode is Mode.MANUAL:
         return ""
-    if not caps.gps:
-        return "GPS disabled (devices.gps.enabled = false)"
-    if not caps.compass:
-        return "compass disabled (devices.compass.enabled = false)"
+    why = disabled(sup, "gps", "compass")
+    if why:
+        return why
     n = sup.nav.value
     if n is None or not n.pos_valid:
         return "no valid position"
@@ -92,8 +99,8 @@ def cannot(sup: Supervisor, mode: Mode) -> str:
     if sup.last_heading_t is None or \
             sup.now() - sup.last_heading_t > sup.cfg.failsafe.heading_lost_s:
         return "no compass heading"
-    if mode is Mode.FOLLOW and not caps.buoy:
-        return "buoy feed disabled (devices.buoy.enabled = false)"
+    if mode is Mode.FOLLOW and not sup.caps.buoy:
+        return disabled(sup, "buoy")
     if mode is Mode.RETURN and sup.home is None:
         return "home unknown"
     return ""
