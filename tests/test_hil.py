@@ -16,10 +16,12 @@ import os
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from hil.run import HilResult, run_hil
 from hil.scenario import load_hil_scenario
+from zarco_tools.sim_report import SETTLE_M, xtrack_series
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "hil" / "scenarios" / "line_faults.toml"
@@ -68,9 +70,11 @@ def test_gps_unplug_and_replug_are_seen_and_survived(hil: HilResult) -> None:
     (rp,) = r["hil"]["replugs"]
     assert rp["device"] == "gps" and rp["t"] == pytest.approx(15.0, abs=0.1)  # the rig's
     assert gps[i]["t"] >= 13.95 and "ok" in [h["state"] for h in gps if h["t"] > rp["t"]]
-    # reopened and read again after the port came back
+    # reopened and read again after the port came back; the rig sees the open by
+    # polling the master (late by its poll period and its loop's lag), the read
+    # is the runtime's own clock: both after the replug, in no set order
     assert rp["opened_after_s"] is not None and rp["opened_after_s"] >= 0.0
-    assert rp["read_after_s"] is not None and rp["read_after_s"] >= rp["opened_after_s"]
+    assert rp["read_after_s"] is not None and rp["read_after_s"] >= 0.0
     # the other devices never noticed
     assert [h["state"] for h in health(r, "thrusters")] == ["stale", "ok"]
 
@@ -104,12 +108,33 @@ def test_noise_and_bad_checksums_are_refused_not_fatal(hil: HilResult) -> None:
 
 
 def test_the_boat_stays_on_its_line(hil: HilResult) -> None:
+    """On the settled line (past ``SETTLE_M``) the boat holds 0.5 m except while the
+    position failsafe holds zero thrust: from the unplug until the failsafe has
+    cleared (``failsafe.clear_after_s`` after the GPS came back) and 5 s of
+    recovery after, it drifts with the 0.2 m/s cross current. There every
+    command on the wire is zero, and the drift stays within what that current
+    can carry the boat in that time."""
     r = hil.report
     (leg,) = r["legs"]
     assert leg["samples"] > 150  # 20 m of settled line at 10 Hz
-    assert r["xtrack_rms_m"] < 0.12, r["xtrack_rms_m"]
-    assert r["xtrack_max_m"] < 0.5, r["xtrack_max_m"]
     assert 30.0 < r["sim_seconds"] < 50.0
+    along, d, k = xtrack_series(hil.log, hil.legs)
+    t = np.asarray(hil.log.t)
+    settled = (k >= 0) & (along >= SETTLE_M)
+    fs = [f["t"] for f in r["hil"]["failsafes"] if f["message"].startswith("position_lost")]
+    entered, cleared = fs[0], fs[1]
+    unplug = 14.0
+    drifting = (t >= unplug) & (t <= cleared + 5.0)
+    line = np.abs(d[settled & ~drifting])
+    assert line.size > 100  # 10 s of line at 10 Hz
+    assert float(np.sqrt(np.mean(line**2))) < 0.12, float(np.sqrt(np.mean(line**2)))
+    assert float(line.max()) < 0.5, float(line.max())
+    held = (t > entered + 0.05) & (t < cleared - 0.05)
+    assert held.sum() > 10
+    assert not np.any(np.asarray(hil.log.u1)[held]) and not np.any(np.asarray(hil.log.u2)[held])
+    current_mps = hil.scenario.world.current.speed_mps
+    drift_max = float(np.abs(d[settled & drifting]).max())
+    assert drift_max < 0.5 + current_mps * (cleared - unplug), (drift_max, cleared)
 
 
 def test_timing_is_measured_at_the_ports(hil: HilResult) -> None:
