@@ -196,12 +196,14 @@ def test_an_auv_starting_off_is_gone_after_at_its_speed_without_waiting_for_its_
     cfg = FollowSettings()
     g = FollowGuidance(cfg)
     assert g.update(_track(vx=0.02, sv=0.03), 100.0, 0.5, 0.0).leg is None  # above it
-    off = _track(x=4.0, vx=0.25, sv=0.03, t=101.0)
-    st = g.update(off, 101.0, 0.5, 0.0)
+    # one low-pass time constant later the target has moved most of the way
+    t1 = 100.0 + cfg.target_tau_s
+    off = _track(x=4.0, vx=0.25, sv=0.03, t=t1)
+    st = g.update(off, t1, 0.5, 0.0)
     assert not g.moving and st.leg is not None and g.target is not None
     gap = g.target.x - 0.5  # the target moves smoothly to where the filter has it
     assert gap > 1.0
     assert st.speed_ref_mps == pytest.approx(0.25 + gap / cfg.catchup_tau_s)
     unsure = dataclasses.replace(off, kf_pos_sigma_m=3.0, flags=int(TrackFlags.INITIALISED))
-    st = g.update(unsure, 101.5, 0.5, 0.0)
+    st = g.update(unsure, t1 + 0.5, 0.5, 0.0)
     assert st.mode == "follow" and st.leg is not None

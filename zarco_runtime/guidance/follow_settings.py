@@ -34,16 +34,18 @@ class FollowSettings:
                                 min=0.0, max=3.0)
     max_speed_mps: float = spec(1.5, "m/s", "fastest speed reference while catching up",
                                 min=0.1, max=3.0)
-    lookahead_m: float = spec(5.0, "m", "line-of-sight look-ahead Δ: the ASV converges "
-                              "onto the AUV's track at atan(offset/Δ)", min=0.5, max=100.0)
+    lookahead_m: float = spec(3.0, "m", "line-of-sight look-ahead Δ: the ASV converges "
+                              "onto the AUV's track at atan(offset/Δ); shorter turns the "
+                              "boat sooner after the AUV turns, too short steers the fixes' "
+                              "noise", min=0.5, max=100.0)
     max_turn_rate_dps: float = spec(25.0, "deg/s", "the virtual leg's course turns no "
                                     "faster than this (the estimate's jitter is not "
                                     "steered)", min=1.0, max=360.0)
     catchup_tau_s: float = spec(5.0, "s", "time constant of closing an along-track gap "
                                 "(speed reference v_AUV + gap/τ)", min=0.5, max=600.0)
-    target_tau_s: float = spec(1.5, "s", "the AUV's position is low-passed over this about "
-                               "its velocity (fixes move the aim smoothly)", min=0.01,
-                               max=60.0)
+    target_tau_s: float = spec(3.0, "s", "the AUV's position is low-passed over this about "
+                               "its velocity (fixes move the aim smoothly; about three "
+                               "fixes at the usual 1 s cycle)", min=0.01, max=60.0)
     line_gate_m: float = spec(3.0, "m", "the RLS line is used only while its position "
                               "agrees with the Kalman filter's within this plus 3σ",
                               min=0.1, max=1000.0)
