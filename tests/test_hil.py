@@ -123,7 +123,7 @@ def test_the_boat_stays_on_its_line(hil: HilResult) -> None:
     settled = (k >= 0) & (along >= SETTLE_M)
     fs = [f["t"] for f in r["hil"]["failsafes"] if f["message"].startswith("position_lost")]
     entered, cleared = fs[0], fs[1]
-    unplug = 14.0
+    unplug = next(h["t"] for h in health(r, "gps") if h["state"] == "disconnected")
     drifting = (t >= unplug) & (t <= cleared + 5.0)
     line = np.abs(d[settled & ~drifting])
     assert line.size > 100  # 10 s of line at 10 Hz
