@@ -313,12 +313,12 @@ def test_stop_button_and_escape_stop_the_boat(rig: Rig) -> None:
         _text(page, "#cmd-result", f"t.startsWith('{button}: accepted by alpha, mode {mode}')")
         _until(lambda mode=mode, tb=tb: _shows(rig, page, mode, tb),
                what=f"the page showing alpha in {mode}")
-    t1 = _boat_t(rig, "alpha")
     page.keyboard.press("Escape")
     _text(page, "#mode", "t === 'idle'", 10_000)
     assert _mode(rig, "alpha") == "idle"
-    _until(lambda: _acks(rig, "alpha", "stop from shore:alice: accepted", t1),
-           what="the boat's acknowledgement of Escape")
+    # the boat's reply to the page (one per command; its event may be held back by
+    # the supervisor's per-source event budget after hold and return in the same second)
+    _text(page, "#cmd-result", "t.startsWith('stop: accepted by alpha, mode idle')")
     _text(page, "#armed", "t === 'disarmed'")
     # the disarm button: armed, then disarmed, as the boat's state says
     page.click("#cmd-arm")
@@ -372,7 +372,9 @@ def test_a_viewer_sees_no_commands_and_sends_none(rig: Rig) -> None:
     time.sleep(1.0)
     assert page.text_content("#cmd-result") == ""
     assert _mode(rig, "alpha") == mode
-    assert _acks(rig, "alpha", "", t0) == []
+    # nothing acknowledged for anyone but the operator (whose earlier commands'
+    # acknowledgements may still arrive)
+    assert [a for a in _acks(rig, "alpha", "", t0) if "shore:alice" not in a] == []
 
 
 class _Other(http.server.BaseHTTPRequestHandler):
