@@ -20,6 +20,21 @@ Any other source that knows the AUV turns — an a-priori plan saying where its
 legs turn and to which course — declares the turn the same way, through
 :meth:`ManeuverDetector.declare`.
 
+A sharp turn the quiet model followed in part leaves it a turn rate once the
+AUV flies straight again, which noisy fixes correct only slowly: between
+fixes the track curves off the new leg, the boat with it, and the track says
+arcing.  :meth:`ManeuverDetector.spin` checks the rate against the path: over
+the last ``SPIN_WINDOW_S`` it compares the course of the filter's positions
+(a least-squares velocity through those of each half of the window: positions
+follow the fixes, a course carried between fixes by a wrong rate does not)
+in the second half with the first, and the quiet model's turn rate averaged
+over the window times half its length.  When the rate says at least
+``SPIN_MIN_DEG`` and the path turned less than ``SPIN_STRAIGHT_DEG`` and half
+of it (or the other way), by ``SPIN_SIGMAS`` of the path's turn (from the
+filter's position σ), on
+``SPIN_CHECKS`` updates in a row, the rate is spurious and set back to 0.  On
+a true arc the path turns as the rate says.
+
 ``turn_utc``: UTC (s) of the last line restart (the TURNING flag holds
 ``turning_flag_s`` after it).
 """
@@ -27,6 +42,7 @@ legs turn and to which course — declares the turn the same way, through
 from __future__ import annotations
 
 import math
+from collections import deque
 
 from zarco_runtime.tracking.imm import Imm
 from zarco_runtime.tracking.kalman import CvKalman
@@ -38,13 +54,44 @@ ARC_TAU_S = 10.0
 ARC_MIN_SPEED_MPS = 0.2
 #: 1σ (deg/s) of the quiet model's turn rate once a sharp turn is over
 QUIET_RATE_SIGMA_DPS = 0.5
+#: the quiet model's turn rate is checked against the course the filter turned
+#: through over this long (s), when the rate integrates to at least this (deg)
+SPIN_WINDOW_S = 24.0
+SPIN_MIN_DEG = 20.0
+#: ... and reset when the path turned less than this (deg) and half that, and
+#: less by this many σ of the path's turn, on this many updates in a row
+SPIN_STRAIGHT_DEG = 8.0
+SPIN_SIGMAS = 3.0
+SPIN_CHECKS = 4
+
+
+def _course(entries: list[tuple[float, float, float, float]], sigma_m: float
+            ) -> tuple[float, float] | None:
+    """The course (rad) of the least-squares velocity through the positions of
+    ``entries`` (time s, north m, east m, ...) and its 1σ (rad) for positions
+    of ``sigma_m`` 1σ each; None with fewer than 3 or no speed."""
+    n = len(entries)
+    if n < 3:
+        return None
+    tb = sum(e[0] for e in entries) / n
+    xb = sum(e[1] for e in entries) / n
+    yb = sum(e[2] for e in entries) / n
+    stt = sum((e[0] - tb) ** 2 for e in entries)
+    if stt <= 0.0:
+        return None
+    vx = sum((e[0] - tb) * (e[1] - xb) for e in entries) / stt
+    vy = sum((e[0] - tb) * (e[2] - yb) for e in entries) / stt
+    v = math.hypot(vx, vy)
+    if v <= 0.0:
+        return None
+    return math.atan2(vy, vx), sigma_m / (v * math.sqrt(stt))
 
 
 class ManeuverDetector:
     """The CUSUM's state, the IMM's manoeuvre state and the pending line restart."""
 
-    __slots__ = ("arc_rate", "arc_t", "arcing", "cusum_neg", "cusum_pos", "line_restart",
-                 "maneuvering", "p", "turn_utc")
+    __slots__ = ("arc_rate", "arc_t", "arcing", "cusum_neg", "cusum_pos", "history",
+                 "line_restart", "maneuvering", "p", "spin_run", "spins", "turn_utc")
 
     def __init__(self, params: TrackerParams) -> None:
         self.p = params
@@ -59,6 +106,12 @@ class ManeuverDetector:
         #: a turn was declared: restart the line at the next update
         self.line_restart = False
         self.turn_utc = -math.inf
+        #: (filter time s, north m, east m, quiet turn rate rad/s) after recent updates
+        self.history: deque[tuple[float, float, float, float]] = deque()
+        #: spurious quiet turn rates set back to 0 (:meth:`spin`), and checks in
+        #: a row that found the rate spurious
+        self.spins = 0
+        self.spin_run = 0
 
     def reset(self) -> None:
         """A (re)initialised filter starts straight."""
@@ -66,6 +119,52 @@ class ManeuverDetector:
         self.arcing = False
         self.arc_rate = 0.0
         self.arc_t = math.nan
+        self.history.clear()
+        self.spin_run = 0
+
+    def spin(self, kf: Imm) -> bool:
+        """After an update (filter time s, NED m): check the quiet model's turn
+        rate against the path over the last ``SPIN_WINDOW_S`` (module
+        docstring); when the path did not turn as the rate says, set the rate
+        back to 0 (counted in :attr:`spins`) and return True."""
+        vx, vy = kf.x[2], kf.x[3]
+        h = self.history
+        if math.hypot(vx, vy) < ARC_MIN_SPEED_MPS:
+            h.clear()
+            return False
+        w, _ = kf.quiet_turn_rate
+        h.append((kf.t, kf.x[0], kf.x[1], w))
+        while len(h) > 2 and kf.t - h[1][0] >= SPIN_WINDOW_S:
+            h.popleft()
+        t0 = h[0][0]
+        if kf.t - t0 < SPIN_WINDOW_S:
+            return False
+        tm = 0.5 * (t0 + kf.t)
+        first = [e for e in h if e[0] <= tm]
+        second = [e for e in h if e[0] >= tm]
+        sigma = kf.pos_sigma()
+        k1, k2 = _course(first, sigma), _course(second, sigma)
+        if k1 is None or k2 is None:
+            return False
+        turned = math.remainder(k2[0] - k1[0], math.tau)
+        # between the halves' middles: half the window
+        said = sum(e[3] for e in h) / len(h) * 0.5 * (kf.t - t0)
+        sign = math.copysign(1.0, said)
+        if (abs(said) < math.radians(SPIN_MIN_DEG)
+                or turned * sign >= min(0.5 * abs(said), math.radians(SPIN_STRAIGHT_DEG))
+                or abs(said) - turned * sign < SPIN_SIGMAS * math.hypot(k1[1], k2[1])):
+            self.spin_run = 0
+            return False
+        self.spin_run += 1
+        if self.spin_run < SPIN_CHECKS:
+            return False
+        self.spin_run = 0
+        kf.reset_quiet_turn_rate(math.radians(QUIET_RATE_SIGMA_DPS) ** 2)
+        self.arc_rate = 0.0
+        self.arcing = False
+        h.clear()
+        self.spins += 1
+        return True
 
     def _arc(self, kf: Imm) -> bool:
         """Whether the AUV flies an arc (:meth:`imm_state`)."""
@@ -140,6 +239,8 @@ class ManeuverDetector:
             return ""
         mu = kf.maneuver_probability
         p = self.p
+        if not self.maneuvering:
+            self.spin(kf)
         arc = self._arc(kf)
         if not self.maneuvering:
             if mu >= p.maneuver_on:

@@ -50,7 +50,8 @@ declaration.
   lasts (TURNING set meanwhile and ``turning_flag_s`` after).  An arc (the
   quiet model's averaged turn rate) sets TURNING without restarting the
   line; while turning, :meth:`AuvTracker.tick` brings the filter's state
-  forward along its turn rate.
+  forward along its turn rate.  A turn rate the path does not bear out (what
+  a sharp turn leaves in the quiet model) is set back to 0 (``spin``).
 * Every accepted range also feeds the sound-speed estimate
   (:mod:`.calibration`); the network the ranges are computed with follows it.
 * Aging: no accepted update for ``stale_after_s`` sets STALE; for
@@ -69,7 +70,7 @@ Counters (:meth:`AuvTracker.counters`): ``event.<reason>`` for dropped events
 ``depth``, ``no_intersection``, ``innovation``, ``range_only_uninitialised``,
 ``init_pending``, ``inconsistent``: its ranges disagree with the other
 beacons') and for tracker events (``maneuver``, ``reacquired``, ``reanchored``,
-``clock_resync``, ``reply_refused``), ``internal`` for any unexpected exception
+``clock_resync``, ``reply_refused``, ``spin``), ``internal`` for any unexpected exception
 (never raised: the tests assert it stays absent).
 
 Pure and deterministic: no I/O, no clock reads.
@@ -612,7 +613,10 @@ class AuvTracker:
                 man.declare(kf)
             # the IMM's manoeuvring model: restart the line from the filter at
             # every update while it dominates, and once more when it ends
+            spins = man.spins
             state = man.imm_state(kf)
+            if man.spins != spins:
+                self.dropped["spin"] += 1
             if state or man.line_restart:
                 if state == "enter" or not state:
                     self.turns += 1
