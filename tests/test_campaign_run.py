@@ -1,7 +1,8 @@
 """``zarco campaign`` runs: the same results on local processes and on a Dask
 LocalCluster of two workers; a campaign killed mid-run resumes without
-repeating or losing a mission; ``zarco campaign compare`` pairs the same
-missions.  Small campaigns of short missions (``scenario.max_duration_s``)."""
+repeating or losing a mission, and one terminated ends its workers with it;
+``zarco campaign compare`` pairs the same missions.  Small campaigns of short
+missions (``scenario.max_duration_s``)."""
 
 from __future__ import annotations
 
@@ -114,6 +115,65 @@ def test_a_killed_campaign_resumes_without_repeating_or_losing_a_mission(
     assert d.min() - 1e-4 <= lo <= d.mean() + 1e-4 <= hi + 2e-4 <= d.max() + 3e-4
     pa = sum(1 for r in lines(pool) if not r["fails"] and not r["exempt"])
     assert c["all"]["checks"]["every target"]["passed_a"] == pa
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (from /proc)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_text()
+        except OSError:
+            continue
+        # pid (comm) state ppid ...: comm may hold spaces, the fields after it do not
+        if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+            out.append(int(d.name))
+    return out
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def test_a_terminated_campaign_ends_its_workers_and_says_how_to_resume(
+        tmp_path: Path) -> None:
+    out = tmp_path / "t"
+    cmd = [sys.executable, "-m", "zarco_runtime.cli", "campaign", SPEC, "--n", "6", "--seed",
+           "6", "--jobs", "2", "--out", str(out), "--no-plots", *SHORT]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            start_new_session=True, cwd=ROOT)
+    try:
+        res = out / "results.jsonl"
+        deadline = time.monotonic() + 300.0
+        while not (res.exists() and res.read_text().count("\n") >= 1):
+            assert time.monotonic() < deadline
+            assert proc.poll() is None, proc.stderr.read().decode() if proc.stderr else ""
+            time.sleep(0.2)
+        workers = _children(proc.pid)
+        assert len(workers) >= 2
+        proc.send_signal(signal.SIGTERM)  # the campaign alone, as `kill PID` does
+        assert proc.wait(timeout=60) == 130
+        err = proc.stderr.read().decode() if proc.stderr else ""
+        assert "interrupted:" in err and "the same command resumes" in err
+        # its workers ended with it (none left running a mission for nobody)
+        deadline = time.monotonic() + 20.0
+        alive = workers
+        while alive and time.monotonic() < deadline:
+            time.sleep(0.2)
+            alive = [w for w in alive if _running(w)]
+        assert alive == []
+        assert 1 <= res.read_text().count("\n") < 6
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=60)
 
 
 def test_compare_refuses_different_missions(pool: Path, tmp_path: Path) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -24,6 +25,11 @@ from typing import Any, TextIO
 
 from zarco_core.config import ConfigError
 from zarco_core.paths import writable_dir
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    """SIGTERM handler: the campaign stops as on Ctrl-C (KeyboardInterrupt)."""
+    raise KeyboardInterrupt
 
 
 def _positive_int(text: str) -> int:
@@ -126,6 +132,9 @@ def cmd_campaign(args: argparse.Namespace) -> int:
             stream = run_dask(spec, args.seed, todo, sets, args.scheduler)
         else:
             stream = run_local(spec, args.seed, todo, sets, args.jobs)
+        # a TERM (the job killed, a time limit) stops it as Ctrl-C does: the
+        # workers are ended with it, not left running their missions
+        old_term = signal.signal(signal.SIGTERM, _interrupt)
         try:
             for rec in stream:
                 store.append(rec)
@@ -136,6 +145,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
             print(f"interrupted: {len(store.done)} missions in {out / 'results.jsonl'}; "
                   "the same command resumes", file=sys.stderr)
             return 130
+        finally:
+            signal.signal(signal.SIGTERM, old_term)
     store.close()
     records = [store.done[k] for k in wanted if k in store.done]
     summary = summarise(records, tuple(checks), spec.scenario_file, sets, worst=args.worst)
