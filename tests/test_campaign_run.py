@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from procs import alive as running
+from procs import children
 
 from zarco_core.config import ConfigError
 from zarco_runtime.cli import main as zarco
@@ -117,31 +119,6 @@ def test_a_killed_campaign_resumes_without_repeating_or_losing_a_mission(
     assert c["all"]["checks"]["every target"]["passed_a"] == pa
 
 
-def _children(pid: int) -> list[int]:
-    """The processes whose parent is ``pid`` (from /proc)."""
-    out = []
-    for d in Path("/proc").iterdir():
-        if not d.name.isdigit():
-            continue
-        try:
-            stat = (d / "stat").read_text()
-        except OSError:
-            continue
-        # pid (comm) state ppid ...: comm may hold spaces, the fields after it do not
-        if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
-            out.append(int(d.name))
-    return out
-
-
-def _running(pid: int) -> bool:
-    """Whether process ``pid`` exists and is not a zombie."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
-
-
 def test_a_terminated_campaign_ends_its_workers_and_says_how_to_resume(
         tmp_path: Path) -> None:
     out = tmp_path / "t"
@@ -156,7 +133,7 @@ def test_a_terminated_campaign_ends_its_workers_and_says_how_to_resume(
             assert time.monotonic() < deadline
             assert proc.poll() is None, proc.stderr.read().decode() if proc.stderr else ""
             time.sleep(0.2)
-        workers = _children(proc.pid)
+        workers = children(proc.pid)
         assert len(workers) >= 2
         proc.send_signal(signal.SIGTERM)  # the campaign alone, as `kill PID` does
         assert proc.wait(timeout=60) == 130
@@ -167,7 +144,7 @@ def test_a_terminated_campaign_ends_its_workers_and_says_how_to_resume(
         alive = workers
         while alive and time.monotonic() < deadline:
             time.sleep(0.2)
-            alive = [w for w in alive if _running(w)]
+            alive = [w for w in alive if running(w)]
         assert alive == []
         assert 1 <= res.read_text().count("\n") < 6
     finally:

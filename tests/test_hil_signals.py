@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from procs import alive, children
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "hil" / "scenarios" / "line_faults.toml"
@@ -32,30 +33,6 @@ def _needs_ptys() -> None:
         pytest.skip(f"no pseudo-terminals here: {exc}")
     os.close(a)
     os.close(b)
-
-
-def alive(pid: int) -> bool:
-    """Whether ``pid`` runs (a zombie waiting for its reaper does not)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
-
-
-def children(pid: int) -> list[int]:
-    """The processes whose parent is ``pid``."""
-    out = []
-    for d in Path("/proc").iterdir():
-        if not d.name.isdigit():
-            continue
-        try:
-            fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[1]) == pid:
-            out.append(int(d.name))
-    return out
 
 
 def runtime_of(rig: subprocess.Popen[str]) -> int:
