@@ -6,6 +6,7 @@ for its lease."""
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import math
 
@@ -203,6 +204,41 @@ def test_the_run_loop_publishes_zero_when_a_tick_raises() -> None:
     cmds = run_virtual(main())
     assert cmds and (cmds[-1].u1, cmds[-1].u2) == (0.0, 0.0)
     assert "guidance bug" in cmds[-1].reason
+
+
+def test_a_held_command_on_the_bus_says_why_it_is_zero() -> None:
+    """What the thrusters are sent (and what is recorded) carries the reason the
+    controller holds: disarmed, then a driving failsafe; nothing while it drives."""
+    from zarco_core.messages import ThrusterCommand
+
+    async def main() -> list[ThrusterCommand]:
+        r = Rig()
+        cmds: list[ThrusterCommand] = []
+        r.bus.listen(ThrusterCommand, cmds.append)
+        r.task.clock = Clock(utc_offset_s=0.0)
+        r.directive(0.0, Mode.LINES, armed=False, mission=LINES)
+        r.sensors(0.0)
+        task = asyncio.create_task(r.task.run())
+        await asyncio.sleep(0.3)
+        r.directive(0.3, Mode.LINES, seq=2, driving_failsafes=("link",), mission=LINES)
+        r.sensors(0.3)
+        await asyncio.sleep(0.3)
+        r.directive(0.6, Mode.LINES, seq=3, mission=LINES)
+        r.sensors(0.6)
+        await asyncio.sleep(0.3)
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+        return cmds
+
+    cmds = run_virtual(main())
+    held = [c for c in cmds if c.t < 0.3]
+    assert held and all((c.u1, c.u2) == (0.0, 0.0) and c.reason == "disarmed" for c in held)
+    fs = [c for c in cmds if 0.35 <= c.t < 0.6]
+    assert fs and all((c.u1, c.u2) == (0.0, 0.0) and "failsafe link" in c.reason for c in fs)
+    driving = [c for c in cmds if c.t >= 0.65]
+    assert driving and all(c.reason == "" for c in driving)
+    assert any((c.u1, c.u2) != (0.0, 0.0) for c in driving)
 
 
 def test_a_disarmed_directive_gives_zero_thrust_whatever_its_mode() -> None:

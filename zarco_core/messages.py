@@ -156,7 +156,9 @@ class Attitude:
 
 @dataclass(slots=True)
 class ThrusterCommand:
-    """Normalised thruster commands, -100..+100 (1 = port, 2 = starboard)."""
+    """Normalised thruster commands, -100..+100 (1 = port, 2 = starboard);
+    ``reason``: why a held (zero) command is zero ("idle", "disarmed", "not
+    driving: …", a fault), "" while the controller drives."""
 
     t: float
     u1: float

@@ -351,7 +351,8 @@ class ControlTask:
             except Exception as exc:  # never let a control bug leave thrust on
                 self.bus.publish(ThrusterCommand(t, 0.0, 0.0, f"control error: {exc!r}"))
                 raise
-            reason = self.fault or ("" if self.mode is not Mode.IDLE else "idle")
+            # a held (zero) command says why: idle, disarmed, a failsafe, a fault
+            reason = self.fault or (self.reason if alloc is ZERO else "")
             cmd = ThrusterCommand(t, alloc.u1, alloc.u2, reason)
             self.interlock.on_command(cmd)
             self.bus.publish(cmd)
