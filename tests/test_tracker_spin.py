@@ -34,7 +34,7 @@ def _fly(kf: Imm, man: ManeuverDetector, seed: int, speed: float, rate_dps: floa
          ) -> list[tuple[float, float]]:
     """Fixes of an AUV at ``speed`` m/s turning at ``rate_dps`` (0: straight),
     the quiet model starting at ``rate0_dps`` with ``sigma0_dps`` of σ; after every
-    update the detector runs as in the tracker.  Returns (time s, quiet rate
+    update the check and the detector run as in the tracker.  Returns (time s, quiet rate
     deg/s) after each update."""
     rng = np.random.default_rng(seed)
     w = math.radians(rate_dps)
@@ -58,6 +58,8 @@ def _fly(kf: Imm, man: ManeuverDetector, seed: int, speed: float, rate_dps: floa
         z = [x + rng.normal(0.0, FIX_SIGMA_M), y + rng.normal(0.0, FIX_SIGMA_M)]
         ok, _ = kf.update(XY, z, [FIX_SIGMA_M ** 2] * 2, 16.0, 4.0)
         assert ok
+        if not man.maneuvering:
+            man.spin(kf)
         man.imm_state(kf)
         out.append((t, math.degrees(kf.quiet_turn_rate[0])))
     return out

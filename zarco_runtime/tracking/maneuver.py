@@ -31,9 +31,9 @@ in the second half with the first, and the quiet model's turn rate averaged
 over the window times half its length.  When the rate says at least
 ``SPIN_MIN_DEG`` and the path turned less than ``SPIN_STRAIGHT_DEG`` and half
 of it (or the other way), by ``SPIN_SIGMAS`` of the path's turn (from the
-filter's position σ), on
-``SPIN_CHECKS`` updates in a row, the rate is spurious and set back to 0.  On
-a true arc the path turns as the rate says.
+filter's position σ), on ``SPIN_CHECKS`` updates in a row, the rate is
+spurious and set back to 0.  On a true arc the path turns as the rate says.
+The tracker runs the check after every update while the IMM says straight.
 
 ``turn_utc``: UTC (s) of the last line restart (the TURNING flag holds
 ``turning_flag_s`` after it).
@@ -54,8 +54,8 @@ ARC_TAU_S = 10.0
 ARC_MIN_SPEED_MPS = 0.2
 #: 1σ (deg/s) of the quiet model's turn rate once a sharp turn is over
 QUIET_RATE_SIGMA_DPS = 0.5
-#: the quiet model's turn rate is checked against the course the filter turned
-#: through over this long (s), when the rate integrates to at least this (deg)
+#: the quiet model's turn rate is checked against the path the filter's
+#: positions trace over this long (s), when it says a turn of at least this (deg)
 SPIN_WINDOW_S = 24.0
 SPIN_MIN_DEG = 20.0
 #: ... and reset when the path turned less than this (deg) and half that, and
@@ -239,8 +239,6 @@ class ManeuverDetector:
             return ""
         mu = kf.maneuver_probability
         p = self.p
-        if not self.maneuvering:
-            self.spin(kf)
         arc = self._arc(kf)
         if not self.maneuvering:
             if mu >= p.maneuver_on:

@@ -613,10 +613,9 @@ class AuvTracker:
                 man.declare(kf)
             # the IMM's manoeuvring model: restart the line from the filter at
             # every update while it dominates, and once more when it ends
-            spins = man.spins
-            state = man.imm_state(kf)
-            if man.spins != spins:
+            if isinstance(kf, Imm) and not man.maneuvering and man.spin(kf):
                 self.dropped["spin"] += 1
+            state = man.imm_state(kf)
             if state or man.line_restart:
                 if state == "enter" or not state:
                     self.turns += 1
