@@ -21,6 +21,8 @@ from zarco_runtime.tracking.tracker import AuvTracker
 XY = [(1.0, 0.0), (0.0, 1.0)]
 FIX_INTERVAL_S = 2.0
 FIX_SIGMA_M = 1.0
+#: 1σ (deg/s) of the quiet model's starting turn rate (a settled filter's)
+RATE0_SIGMA_DPS = 0.2
 
 
 def _filter() -> tuple[Imm, ManeuverDetector]:
@@ -30,10 +32,9 @@ def _filter() -> tuple[Imm, ManeuverDetector]:
 
 
 def _fly(kf: Imm, man: ManeuverDetector, seed: int, speed: float, rate_dps: float,
-         rate0_dps: float, duration_s: float, sigma0_dps: float = 0.2
-         ) -> list[tuple[float, float]]:
+         rate0_dps: float, duration_s: float) -> list[tuple[float, float]]:
     """Fixes of an AUV at ``speed`` m/s turning at ``rate_dps`` (0: straight),
-    the quiet model starting at ``rate0_dps`` with ``sigma0_dps`` of σ; after every
+    the quiet model starting at ``rate0_dps`` (σ ``RATE0_SIGMA_DPS``); after every
     update the check and the detector run as in the tracker.  Returns (time s, quiet rate
     deg/s) after each update."""
     rng = np.random.default_rng(seed)
@@ -41,7 +42,7 @@ def _fly(kf: Imm, man: ManeuverDetector, seed: int, speed: float, rate_dps: floa
     kf.init(0.0, 0.0, 0.0, speed, 0.0, 1.0, 0.01)
     quiet = kf.models[0]
     quiet.x[4] = math.radians(rate0_dps)
-    quiet.P[4][4] = math.radians(sigma0_dps) ** 2
+    quiet.P[4][4] = math.radians(RATE0_SIGMA_DPS) ** 2
     x = y = 0.0
     psi = 0.0
     out = []
