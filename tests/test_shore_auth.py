@@ -48,6 +48,15 @@ def _acks(c: ShoreClient, vessel: str) -> list[str]:
     return [e["text"] for e in (v.events if v else []) if e.get("kind") == "ack"]
 
 
+def _wait_ack(c: ShoreClient, vessel: str, text: str, timeout_s: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if any(text in a for a in _acks(c, vessel)):
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"no acknowledgement {text!r}; heard: {_acks(c, vessel)}")
+
+
 def _roles_hold(ep: str, op: Credentials, viewer: Credentials, vessel: str) -> None:
     """A viewer watches but its commands have no effect; an operator's are
     acknowledged and acted on."""
@@ -77,7 +86,8 @@ def _roles_hold(ep: str, op: Credentials, viewer: Credentials, vessel: str) -> N
         r = replies[0]
         assert r.ok and r.mode == "hold" and r.reason == "" and r.id
         _wait_state(view, vessel, lambda s: s["mode"] == "hold")
-        assert any("mode from shore:alice: accepted" in a for a in _acks(view, vessel))
+        # the acknowledgement event follows the state that shows its effect
+        _wait_ack(view, vessel, "mode from shore:alice: accepted")
         # a refusal comes back with its reason
         refused = opc.command(vessel, "thrust", {"u1": 10, "u2": 10})
         assert len(refused) == 1 and not refused[0].ok
