@@ -191,3 +191,18 @@ def observer(eps: list[str], want: list[str], timeout_s: float = 30.0) -> ShoreC
         if time.monotonic() > deadline:
             raise AssertionError(f"never heard {want} on {eps}")
         time.sleep(0.3)
+
+
+def acks(c: ShoreClient, vessel: str) -> list[str]:
+    """The texts of the acknowledgement events ``c`` heard from ``vessel``."""
+    v = c.snapshot().get(vessel)
+    return [e["text"] for e in (v.events if v else []) if e.get("kind") == "ack"]
+
+
+def wait_ack(c: ShoreClient, vessel: str, text: str, timeout_s: float = 10.0) -> None:
+    """Until ``c`` heard an acknowledgement containing ``text`` from ``vessel``
+    (the event may follow the state that shows the command's effect)."""
+    deadline = time.monotonic() + timeout_s
+    while not any(text in a for a in acks(c, vessel)):
+        assert time.monotonic() < deadline, f"no acknowledgement {text!r}: {acks(c, vessel)}"
+        time.sleep(0.05)

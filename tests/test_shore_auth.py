@@ -11,7 +11,16 @@ from typing import Any
 
 import pytest
 import zenoh
-from shore_support import Boat, Pki, boats, connect_when_up, free_port, write_users
+from shore_support import (
+    Boat,
+    Pki,
+    acks,
+    boats,
+    connect_when_up,
+    free_port,
+    wait_ack,
+    write_users,
+)
 
 from zarco_runtime.links.shore.zenoh_config import client_config
 from zarco_tools.shore.client import ConsoleConfig, Credentials, ShoreClient
@@ -43,20 +52,6 @@ def _wait_state(c: ShoreClient, vessel: str, pred: Any, timeout_s: float = 20.0,
     raise AssertionError(f"{kind} never satisfied the condition; last: {last}")
 
 
-def _acks(c: ShoreClient, vessel: str) -> list[str]:
-    v = c.snapshot().get(vessel)
-    return [e["text"] for e in (v.events if v else []) if e.get("kind") == "ack"]
-
-
-def _wait_ack(c: ShoreClient, vessel: str, text: str, timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if any(text in a for a in _acks(c, vessel)):
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"no acknowledgement {text!r}; heard: {_acks(c, vessel)}")
-
-
 def _roles_hold(ep: str, op: Credentials, viewer: Credentials, vessel: str) -> None:
     """A viewer watches but its commands have no effect; an operator's are
     acknowledged and acted on."""
@@ -79,7 +74,7 @@ def _roles_hold(ep: str, op: Credentials, viewer: Credentials, vessel: str) -> N
         view.heartbeat([vessel])
         time.sleep(1.0)
         assert _wait_state(opc, vessel, lambda s: True)["mode"] == "lines"
-        assert not any("bob" in a or "shore" in a for a in _acks(opc, vessel))
+        assert not any("bob" in a or "shore" in a for a in acks(opc, vessel))
         # the operator's command: acknowledged, and the vessel holds
         replies = opc.command(vessel, "mode", {"mode": "hold"})
         assert len(replies) == 1, replies
@@ -87,7 +82,7 @@ def _roles_hold(ep: str, op: Credentials, viewer: Credentials, vessel: str) -> N
         assert r.ok and r.mode == "hold" and r.reason == "" and r.id
         _wait_state(view, vessel, lambda s: s["mode"] == "hold")
         # the acknowledgement event follows the state that shows its effect
-        _wait_ack(view, vessel, "mode from shore:alice: accepted")
+        wait_ack(view, vessel, "mode from shore:alice: accepted")
         # a refusal comes back with its reason
         refused = opc.command(vessel, "thrust", {"u1": 10, "u2": 10})
         assert len(refused) == 1 and not refused[0].ok

@@ -16,10 +16,12 @@ from shore_support import (
     RECT,
     ROOT,
     Boat,
+    acks,
     boats,
     free_port,
     observer,
     shore,
+    wait_ack,
     write_credentials,
     write_users,
 )
@@ -35,10 +37,6 @@ def _wait(c: ShoreClient, vessel: str, pred: Any, timeout_s: float = 20.0) -> di
             return v.state
         time.sleep(0.05)
     raise AssertionError(f"{vessel}: {c.snapshot()[vessel].state}")
-
-
-def _acks(c: ShoreClient, vessel: str) -> list[str]:
-    return [e["text"] for e in c.snapshot()[vessel].events if e["kind"] == "ack"]
 
 
 def test_two_vessels_one_console(tmp_path: Path) -> None:
@@ -72,8 +70,8 @@ def test_two_vessels_one_console(tmp_path: Path) -> None:
             _wait(obs, "alpha", lambda s: s["mode"] == "hold")
             time.sleep(1.0)
             assert obs.snapshot()["beta"].state["mode"] == "lines"
-            assert any("mode from shore:alice: accepted" in t for t in _acks(obs, "alpha"))
-            assert _acks(obs, "beta") == []
+            wait_ack(obs, "alpha", "mode from shore:alice: accepted")
+            assert acks(obs, "beta") == []
             # a refusal: its reason printed, non-zero exit
             r = shore("--vessel", "beta", "thrust", "10", "10", "--duration", "0.5", env=env)
             assert r.returncode == 1
@@ -110,7 +108,7 @@ def test_two_vessels_one_console(tmp_path: Path) -> None:
             # a vessel nobody has: no reply
             r = shore("--vessel", "gamma", "stop", env=env)
             assert r.returncode == 3 and "no reply" in r.stderr
-            assert _acks(obs, "alpha")[-1].startswith("disarm from shore:alice")
+            assert acks(obs, "alpha")[-1].startswith("disarm from shore:alice")
         finally:
             obs.close()
     assert a.stop() == 0 and b.stop() == 0
@@ -133,11 +131,16 @@ def test_link_loss_holds_after_link_lost_s(tmp_path: Path) -> None:
             t_last = op.last_heartbeat
             assert t_last is not None
             _wait(obs, "zarco", lambda s: s["mode"] == "hold", timeout_s=10.0)
-            time.sleep(0.3)
-            evs = obs.snapshot()["zarco"].events
-            fs = [e for e in evs if e["kind"] == "failsafe" and "link_lost" in e["text"]]
-            hold = [e for e in evs if e["kind"] == "mode" and "mode hold" in e["text"]
-                    and "link_lost" in e["text"]]
+            # the events may follow the state that shows the hold
+            deadline = time.monotonic() + 10.0
+            while True:
+                evs = obs.snapshot()["zarco"].events
+                fs = [e for e in evs if e["kind"] == "failsafe" and "link_lost" in e["text"]]
+                hold = [e for e in evs if e["kind"] == "mode" and "mode hold" in e["text"]
+                        and "link_lost" in e["text"]]
+                if (fs and hold) or time.monotonic() > deadline:
+                    break
+                time.sleep(0.05)
             assert fs and hold, evs
             # the boat's own times: not before link_lost_s without a heartbeat, and
             # within its failsafe evaluation period (20 Hz) after it
