@@ -62,9 +62,11 @@ def run(waypoints: list[list[float]], duration_s: float, *, seed: int = 1,
         lbl: dict[str, Any] | None = None, survey: dict[str, Any] | None = None,
         trk: dict[str, Any] | None = None, speed_mps: float = 1.0, depth_m: float = 10.0,
         start_delay_s: float = 0.0, at_end: str = "continue", dt: float = 0.5,
-        arcs: list[list[float]] | None = None, turn_rate_dps: float = 10.0) -> Run:
+        arcs: list[list[float]] | None = None, turn_rate_dps: float = 10.0,
+        plan: list[list[float]] | None = None) -> Run:
     """Simulate ``duration_s`` and sample the tracker every ``dt`` s (``arcs``,
-    ``turn_rate_dps``: the simulated AUV's, :class:`~drivers.sim.auv.AuvParams`)."""
+    ``turn_rate_dps``: the simulated AUV's, :class:`~drivers.sim.auv.AuvParams`;
+    ``plan``: the AUV's plan given to the tracker, NED m)."""
     lp = LblParams(**(lbl or {}))
     truth = lp.network()
     told = LblNetworkParams(**{**vars_of(truth), **(survey or {})})
@@ -76,6 +78,8 @@ def run(waypoints: list[list[float]], duration_s: float, *, seed: int = 1,
     prior = opts.pop("prior", waypoints[0])
     tracker = AuvTracker(TrackerParams(network=told, auv_depth_m=depth_m,
                                        prior_north_m=prior[0], prior_east_m=prior[1], **opts))
+    if plan:
+        tracker.plan.set_plan([(n, e) for n, e in plan], "test")
     out = Run(world, auv, tracker)
     t = 0.0
     last: AuvTrack | None = None

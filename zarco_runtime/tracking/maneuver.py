@@ -34,6 +34,9 @@ of it (or the other way), by ``SPIN_SIGMAS`` of the path's turn (from the
 filter's position σ), on ``SPIN_CHECKS`` updates in a row, the rate is
 spurious and set back to 0.  On a true arc the path turns as the rate says.
 The tracker runs the check after every update while the IMM says straight.
+On the AUV's plan the tracker knows sooner: once the AUV is on the straight
+part of a leg, :meth:`ManeuverDetector.plan_straight` sets a leftover rate
+back to 0 at once.
 
 ``turn_utc``: UTC (s) of the last line restart (the TURNING flag holds
 ``turning_flag_s`` after it).
@@ -121,6 +124,19 @@ class ManeuverDetector:
         self.arc_t = math.nan
         self.history.clear()
         self.spin_run = 0
+
+    def plan_straight(self, kf: Imm) -> bool:
+        """The AUV's plan says it flies a straight line now: a turn rate left
+        in the quiet model (a sharp corner it followed as an arc) is set back
+        to 0; True if there was one."""
+        w, _ = kf.quiet_turn_rate
+        if abs(w) < math.radians(QUIET_RATE_SIGMA_DPS):
+            return False
+        kf.reset_quiet_turn_rate(math.radians(QUIET_RATE_SIGMA_DPS) ** 2)
+        self.arc_rate = 0.0
+        self.arcing = False
+        self.history.clear()
+        return True
 
     def spin(self, kf: Imm) -> bool:
         """After an update (filter time s, NED m): check the quiet model's turn

@@ -56,6 +56,8 @@ CROSS_GATE_CHI2 = 9.0
 OFF_CAP = 2.5
 OFF_DRIFT = 1.0
 OFF_LEVEL = 4.0
+#: a leg's straight part (between its corners' arcs) is one from this long (m)
+STRAIGHT_MIN_M = 10.0
 #: a fix adds at most this (χ²) to a radius's score
 SCORE_CAP_CHI2 = 9.0
 #: "about a corner": within the widest rounding's tangent length plus this (m)
@@ -149,6 +151,24 @@ class AlongPlan:
                 if abs(self.s - plan.legs[j + 1].s0_m) <= a + CORNER_MARGIN_M:
                     return True
         return False
+
+    def on_straight(self, margin: float) -> int:
+        """The leg (index) whose straight part the progress is on — past the
+        arc (at the AUV's own turning radius) of the corner before it and short
+        of the next one, by ``margin`` (m) — else −1."""
+        plan = self.plan
+        arcs = plan.arcs(self.radius)
+        leg = plan.leg_at(self.s)
+        k = leg.index
+        before = arcs[k - 1] if 0 < k <= len(arcs) else None
+        after = arcs[k] if k < len(arcs) else None
+        a0 = (before.a if before is not None else 0.0) + margin
+        a1 = (after.a if after is not None else 0.0) + margin if k + 1 < len(plan.legs) else 0.0
+        if leg.length_m - a0 - a1 < STRAIGHT_MIN_M:
+            return -1  # no straight part worth the name: a leg of a curve drawn as a polyline
+        if self.s - leg.s0_m < a0 or leg.s0_m + leg.length_m - self.s < a1:
+            return -1
+        return k
 
     def fix(self, fix: AuvFix, window: float, floor: float) -> bool:
         """Place a fix on the path and update; True if it was taken.  Fixes

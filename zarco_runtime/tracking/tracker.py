@@ -51,7 +51,9 @@ declaration.
   quiet model's averaged turn rate) sets TURNING without restarting the
   line; while turning, :meth:`AuvTracker.tick` brings the filter's state
   forward along its turn rate.  A turn rate the path does not bear out (what
-  a sharp turn leaves in the quiet model) is set back to 0 (``spin``).
+  a sharp turn leaves in the quiet model) is set back to 0 (``spin``); so
+  is one left on the straight part of a leg of the AUV's plan, which says
+  the AUV flies straight there (``plan_straight``, once per leg).
 * Every accepted range also feeds the sound-speed estimate
   (:mod:`.calibration`); the network the ranges are computed with follows it.
 * Aging: no accepted update for ``stale_after_s`` sets STALE; for
@@ -70,8 +72,8 @@ Counters (:meth:`AuvTracker.counters`): ``event.<reason>`` for dropped events
 ``depth``, ``no_intersection``, ``innovation``, ``range_only_uninitialised``,
 ``init_pending``, ``inconsistent``: its ranges disagree with the other
 beacons') and for tracker events (``maneuver``, ``reacquired``, ``reanchored``,
-``clock_resync``, ``reply_refused``, ``spin``), ``internal`` for any unexpected exception
-(never raised: the tests assert it stays absent).
+``clock_resync``, ``reply_refused``, ``spin``, ``plan_straight``), ``internal``
+for any unexpected exception (never raised: the tests assert it stays absent).
 
 Pure and deterministic: no I/O, no clock reads.
 """
@@ -109,6 +111,9 @@ STRAIGHT_NOISE_PROBABILITY = 0.2
 #: cycles dropped in a row after which the prediction no longer narrows the
 #: closing window (see AuvTracker._predict_range)
 WINDOW_OFF_DROPS = 6
+#: on its plan, the AUV is on a leg's straight part this far (m) past the arc of
+#: the corner before it (and short of the next): the turn rate is checked once there
+PLAN_STRAIGHT_MARGIN_M = 3.0
 
 Out = list[AuvFix | AuvTrack]
 
@@ -179,6 +184,8 @@ class AuvTracker:
         self._buoy_fault = False
         #: the AUV's a-priori plan: which leg it is on, its progress (:mod:`.plan`)
         self.plan = PlanMatcher(params.plan)
+        #: the plan leg whose straight part the turn rate was last checked on
+        self._straight_leg = -1
 
     # ------------------------------------------------------------ public API
 
@@ -631,9 +638,25 @@ class AuvTracker:
                 man.turn_utc = t_em
         self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma(),
                          math.sqrt(max(0.5 * (kf.P[2][2] + kf.P[3][3]), 0.0)))
+        self._plan_straight()
         track = self._build(t)
         self.last_track = track
         out.append(track)
+
+    def _plan_straight(self) -> None:
+        """On the straight part of a leg of the AUV's plan (and on the leg), once
+        per leg: the plan says the AUV flies straight there, so a turn rate the
+        corner left in the IMM's quiet model is set back to 0."""
+        al, kf = self.plan.along, self.kf
+        if al is None or self.plan.leg < 0 or not isinstance(kf, Imm):
+            self._straight_leg = -1  # off the plan: every leg counts again
+            return
+        k = al.on_straight(PLAN_STRAIGHT_MARGIN_M)
+        if k < 0 or k == self._straight_leg or abs(al.cross) > self.p.plan.cross_gate_m:
+            return
+        self._straight_leg = k
+        if not self.man.maneuvering and self.man.plan_straight(kf):
+            self.dropped["plan_straight"] += 1
 
     # ------------------------------------------------------------ the track
 
