@@ -152,7 +152,9 @@ class TrackerParams:
                                         "RLS residual CUSUM does)")
     turn_holdoff_s: float = spec(4.0, "s", "no second turn declaration this soon after one",
                                  min=0.0, max=600.0)
-    turning_flag_s: float = spec(15.0, "s", "TURNING flag stays set this long after a reset",
+    turning_flag_s: float = spec(8.0, "s", "TURNING flag stays set this long after a line "
+                                 "restart or the last update of an arc (the follow guidance "
+                                 "then takes the filter's velocity, not the line's)",
                                  min=0.0, max=600.0)
     stale_after_s: float = spec(10.0, "s", "no accepted fix for this long: STALE",
                                 min=0.1, max=3600.0)
