@@ -207,3 +207,24 @@ def test_an_auv_starting_off_is_gone_after_at_its_speed_without_waiting_for_its_
     unsure = dataclasses.replace(off, kf_pos_sigma_m=3.0, flags=int(TrackFlags.INITIALISED))
     st = g.update(unsure, t1 + 0.5, 0.5, 0.0)
     assert st.mode == "follow" and st.leg is not None
+
+
+def test_a_slow_auv_far_off_is_gone_to_whatever_its_course_says() -> None:
+    """At the start the track of a still AUV can say it creeps along a course
+    that is mostly noise: 20 m off, the boat goes to it at the catch-up speed,
+    not waiting "ahead" of it on that course; near, it waits as for any AUV,
+    and a fast AUV far ahead is waited for on its line."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    slow = _track(vx=0.35, sv=0.02)
+    _moving(g, slow, at=(1.0, 0.0))
+    st = g.update(slow, slow.t, 20.0, 0.0)
+    assert st.leg is not None and st.leg.course_rad == pytest.approx(math.pi)
+    assert st.speed_ref_mps == cfg.max_speed_mps
+    assert st.reason == "closing in on a slow AUV"
+    near = g.update(slow, slow.t, 5.0, 0.0)
+    assert near.reason == "" and near.speed_ref_mps == cfg.min_speed_mps
+    fast = _track(vx=1.0, sv=0.02)
+    g2 = FollowGuidance(cfg)
+    _moving(g2, fast)
+    assert g2.update(fast, fast.t, 20.0, 0.0).speed_ref_mps == cfg.min_speed_mps

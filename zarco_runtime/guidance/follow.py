@@ -45,7 +45,10 @@ large, or the tracker says so) the boat slows down and holds the position
 where it lost it, and resumes following when the track is back.  Above a
 still AUV it keeps within ``hold_radius_m`` of the filter's position once the
 track has settled, going back there (faster the further it is) when it
-drifts off or the AUV starts to move.
+drifts off or the AUV starts to move.  A slow AUV (below ``SLOW_AUV_MPS``)
+further than ``APPROACH_FAR_M`` is gone to the same way, whatever course its
+track says: at the start a still AUV's track can creep along a course that is
+noise, and the line-of-sight law would have the boat wait "ahead" of it.
 """
 
 from __future__ import annotations
@@ -96,6 +99,10 @@ ABOVE_AHEAD_M = 5.0
 #: above a still AUV, its plan's course is kept this long (s) after its track
 #: was last on the plan
 PLAN_COURSE_HOLD_S = 10.0
+#: an AUV slower than this (m/s) further than this (m) is gone to as a still
+#: one is, whatever course its track says
+SLOW_AUV_MPS = 0.45
+APPROACH_FAR_M = 10.0
 #: length of the virtual leg laid past the aim point (m)
 LEG_PAST_AIM_M = 100.0
 #: the paper law's leg starts this far behind the AUV and ends this far ahead (m)
@@ -206,7 +213,11 @@ class FollowGuidance:
             self.moving = v_line >= max(cfg.still_speed_mps, MOVING_SIGMAS * sv)
         elif v_line + 2.0 * sv < cfg.still_speed_mps:
             self.moving = False
-        if not (self.moving and v >= V_MIN_MPS):
+        # a slow AUV far off (at the start, its track's course mostly noise): go to
+        # it, not "ahead" of it on that course to wait for it
+        approach = (on_plan is None and v < SLOW_AUV_MPS
+                    and math.hypot(tg.x - x, tg.y - y) > APPROACH_FAR_M)
+        if not (self.moving and v >= V_MIN_MPS) or approach:
             # AUV still: keep above it once its track has settled (going to where
             # the filter has it, so a start is followed before it is declared),
             # else hold where we are
@@ -230,7 +241,8 @@ class FollowGuidance:
             course = (path.course_at(0.0) if on_plan is not None
                       else pc[1] if self.plan is not None and pc is not None
                       and t - pc[0] <= PLAN_COURSE_HOLD_S else math.nan)
-            return self._above(tg, t, x, y, course)
+            return self._above(tg, t, x, y, course,
+                               "closing in on a slow AUV" if self.moving else "")
         self.hold = None
         self.mode = "follow"
         if cfg.law == "paper":
@@ -396,13 +408,15 @@ class FollowGuidance:
         return Target(x, y, tg.vx, tg.vy, tg.source)
 
     def _above(self, tg: Target, t: float, x: float, y: float,
-               course: float = math.nan) -> FollowState:
+               course: float = math.nan, reason: str = "") -> FollowState:
         """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
         position (facing ``course``, rad, when it is known: on its plan, the
         AUV will leave along it — and ahead of it on that course, up to
         ``ABOVE_AHEAD_M``, the boat waits for it rather than turning round),
         else go there at the speed the AUV moves away (its estimate's, while
-        it is not yet taken to move) plus the gap over ``catchup_tau_s``."""
+        it is not yet taken to move) plus the gap over ``catchup_tau_s``.
+        ``reason``: what the state says when the AUV is not still (a slow AUV
+        far off)."""
         cfg = self.cfg
         self._was_above = True
         self.hold = None
@@ -428,7 +442,8 @@ class FollowGuidance:
                                            away + dist / cfg.catchup_tau_s))
         c, s = math.cos(psi), math.sin(psi)
         leg = Leg(self.leg_id, x, y, x + dist * c, y + dist * s, v_ref)
-        return FollowState("follow", leg, 0.0, 0.0, v_ref, "above a still AUV", tg.source)
+        return FollowState("follow", leg, 0.0, 0.0, v_ref, reason or "above a still AUV",
+                           tg.source)
 
     def _track_cog(self, t: float, x: float, y: float) -> None:
         """The boat's course over ground (rad) from its positions at least
