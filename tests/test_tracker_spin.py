@@ -2,7 +2,9 @@
 quiet model is set back to 0 on the new leg (the acoustic rig, the filter's
 course then nearer the truth than without the check), while a true arc keeps
 its rate (the filter and the manoeuvre detector as the tracker builds them,
-fed noisy position fixes on a circle)."""
+fed noisy position fixes on a circle).  What a U-turn the IMM declared left in
+the quiet model goes when the manoeuvre ends; an arc flown before a sharper
+turn keeps its rate through it."""
 
 from __future__ import annotations
 
@@ -108,4 +110,67 @@ def test_a_true_arc_keeps_its_rate(seed: int, speed: float, rate: float) -> None
     rates = _fly(kf, man, seed, speed, rate, rate, 150.0)
     assert man.spins == 0
     late = [r for t, r in rates if t >= 60.0]
+    assert abs(float(np.mean(late)) - rate) <= 0.5
+
+
+def _fly_segments(seed: int, speed: float, segments: list[tuple[float, float]]
+                  ) -> list[tuple[float, str, float]]:
+    """Fixes every second of an AUV at ``speed`` m/s flying ``segments`` (duration
+    s, turn rate deg/s), the filter and the detector as the tracker builds and
+    runs them.  Returns (time s, IMM manoeuvre state, quiet rate deg/s) after
+    each update."""
+    trk = AuvTracker(TrackerParams(network=LblNetworkParams()))
+    kf, man = trk.kf, trk.man
+    assert isinstance(kf, Imm)
+    rng = np.random.default_rng(seed)
+    kf.init(0.0, 0.0, 0.0, speed, 0.0, 1.0, 0.01)
+    x = y = psi = t = 0.0
+    out = []
+    for duration, rate in segments:
+        w = math.radians(rate)
+        t_end = t + duration
+        while t < t_end - 1e-9:
+            t += 1.0
+            if w:
+                x += speed / w * (math.sin(psi + w) - math.sin(psi))
+                y += speed / w * (math.cos(psi) - math.cos(psi + w))
+                psi += w
+            else:
+                x += speed * math.cos(psi)
+                y += speed * math.sin(psi)
+            kf.predict(t)
+            z = [x + rng.normal(0.0, FIX_SIGMA_M), y + rng.normal(0.0, FIX_SIGMA_M)]
+            assert kf.update(XY, z, [FIX_SIGMA_M ** 2] * 2, 16.0, 4.0)[0]
+            if not man.maneuvering:
+                man.spin(kf)
+            state = man.imm_state(kf)
+            out.append((t, state, math.degrees(kf.quiet_turn_rate[0])))
+    return out
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize(("speed", "rate"), [(0.6, 8.0), (0.9, 10.0), (1.2, -8.0)])
+def test_what_a_sharp_turn_left_in_the_quiet_model_goes_when_it_ends(
+        seed: int, speed: float, rate: float) -> None:
+    """A lawnmower's U-turn, declared by the IMM: the turn rate the quiet model
+    picked up during it (an arc by its average) is set back to 0 when the
+    manoeuvre ends, not left to the path check."""
+    out = _fly_segments(seed, speed, [(60.0, 0.0), (180.0 / abs(rate), rate), (60.0, 0.0)])
+    exits = [(t, w) for t, state, w in out if state == "exit" and t > 60.0]
+    assert exits, "the U-turn was declared and ended"
+    assert all(w == 0.0 for _, w in exits)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+@pytest.mark.parametrize(("speed", "rate"), [(0.8, 3.0), (1.0, -2.5), (1.2, 3.5)])
+def test_an_arc_flown_before_a_sharper_turn_keeps_its_rate(seed: int, speed: float,
+                                                          rate: float) -> None:
+    """An AUV on an arc tightens it for 8 s, then flies the arc on: a manoeuvre
+    the IMM declares there ends with the arc's rate kept, and the quiet model
+    follows the arc after it."""
+    out = _fly_segments(seed, speed, [(20.0, 0.0), (80.0, rate),
+                                      (8.0, math.copysign(12.0, rate)), (60.0, rate)])
+    exits = [w for t, state, w in out if state == "exit" and t > 100.0]
+    assert all(w * rate > 0.0 and abs(w) >= 0.5 * abs(rate) for w in exits)
+    late = [w for t, _, w in out if t >= 150.0]
     assert abs(float(np.mean(late)) - rate) <= 0.5

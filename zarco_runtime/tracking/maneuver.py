@@ -20,6 +20,12 @@ Any other source that knows the AUV turns — an a-priori plan saying where its
 legs turn and to which course — declares the turn the same way, through
 :meth:`ManeuverDetector.declare`.
 
+When the IMM's manoeuvre ends, the turn rate the quiet model picked up
+meanwhile is set back to 0 unless the AUV flew an arc (the quiet rate's
+average above ``arc_rate_dps``) since at least ``ARC_TAU_S`` before the
+manoeuvre began: an arc that tightened for a moment goes on, the rate a
+U-turn taught the quiet model (its average is an arc by then) goes.
+
 A sharp turn the quiet model followed in part leaves it a turn rate once the
 AUV flies straight again, which noisy fixes correct only slowly: between
 fixes the track curves off the new leg, the boat with it, and the track says
@@ -93,8 +99,9 @@ def _course(entries: list[tuple[float, float, float, float]], sigma_m: float
 class ManeuverDetector:
     """The CUSUM's state, the IMM's manoeuvre state and the pending line restart."""
 
-    __slots__ = ("arc_rate", "arc_t", "arcing", "cusum_neg", "cusum_pos", "history",
-                 "line_restart", "maneuvering", "p", "spin_run", "spins", "turn_utc")
+    __slots__ = ("arc_rate", "arc_since", "arc_t", "arcing", "cusum_neg", "cusum_pos",
+                 "enter_t", "history", "line_restart", "maneuvering", "p", "spin_run", "spins",
+                 "turn_utc")
 
     def __init__(self, params: TrackerParams) -> None:
         self.p = params
@@ -106,6 +113,10 @@ class ManeuverDetector:
         self.arcing = False
         self.arc_rate = 0.0
         self.arc_t = math.nan
+        #: since when (filter time s) the AUV is taken to fly an arc (NaN: it is not),
+        #: and when the IMM's manoeuvre began
+        self.arc_since = math.nan
+        self.enter_t = math.nan
         #: a turn was declared: restart the line at the next update
         self.line_restart = False
         self.turn_utc = -math.inf
@@ -196,7 +207,12 @@ class ManeuverDetector:
         # below 1 m/s the rate that makes an arc grows as 1/speed
         v = math.hypot(kf.x[2], kf.x[3])
         lim = math.radians(self.p.arc_rate_dps) / min(1.0, max(v, ARC_MIN_SPEED_MPS))
+        was = self.arcing
         self.arcing = abs(self.arc_rate) >= (0.5 * lim if self.arcing else lim)
+        if self.arcing and not was:
+            self.arc_since = t
+        elif not self.arcing:
+            self.arc_since = math.nan
         return self.arcing
 
     def declare(self, kf: CvKalman | Imm, restart_line: bool = True) -> None:
@@ -259,11 +275,15 @@ class ManeuverDetector:
         if not self.maneuvering:
             if mu >= p.maneuver_on:
                 self.maneuvering = True
+                self.enter_t = kf.t
                 return "enter"
             return ""
         if mu <= p.maneuver_off:
             self.maneuvering = False
-            if not arc:
+            # an arc only if the AUV flew it before the manoeuvre began: a rate the
+            # quiet model picked up during a sharp turn is that turn's
+            genuine = arc and self.arc_since <= self.enter_t - ARC_TAU_S
+            if not genuine:
                 # a sharp turn is over: what the quiet model learnt of it is no arc
                 kf.reset_quiet_turn_rate(math.radians(QUIET_RATE_SIGMA_DPS) ** 2)
                 self.arc_rate = 0.0
