@@ -10,28 +10,11 @@ import math
 
 import numpy as np
 import pytest
-from tracker_rig import run
+from tracker_rig import uturn_course_errors
 
 from zarco_runtime.tracking.maneuver import ManeuverDetector
 from zarco_runtime.tracking.plan_geometry import Plan
 from zarco_runtime.tracking.plan_progress import STRAIGHT_MIN_M, AlongPlan
-
-
-def _course_errors(speed: float, rate: float, spacing: float, seed: int
-                   ) -> tuple[float, int]:
-    """A lawnmower's U-turn (two 90° turns ``spacing`` m apart) with its plan:
-    the median error (deg) of the filter's course from the new leg's straight
-    part to 30 s into it (before the path alone can tell a leftover rate), and
-    the rates set back by the plan."""
-    wps = [[100.0, 150.0], [220.0, 150.0], [220.0, 150.0 + spacing], [100.0, 150.0 + spacing]]
-    r = run(wps, 30.0 + (240.0 + spacing) / speed + 20.0, seed=seed, speed_mps=speed,
-            turn_rate_dps=rate, start_delay_s=30.0, plan=wps)
-    t_end = r.auv.turn_times()[-1] + 90.0 / rate
-    errs = [abs(math.degrees(math.remainder(
-        math.atan2(s.track.kf_vy_mps, s.track.kf_vx_mps) - s.truth.psi_rad, math.tau)))
-        for s in r.samples if t_end + 5.0 <= s.t <= t_end + 30.0 and s.track is not None]
-    assert len(errs) > 40
-    return float(np.median(errs)), r.tracker.counters().get("fix.plan_straight", 0)
 
 
 def test_a_corners_leftover_turn_rate_is_set_back_on_the_plans_straight_leg(
@@ -39,13 +22,15 @@ def test_a_corners_leftover_turn_rate_is_set_back_on_the_plans_straight_leg(
     cases = [(speed, rate, spacing, seed) for seed in (1, 2, 3)
              for speed, rate, spacing in ((0.6, 7.5, 15.0), (0.9, 10.0, 12.0),
                                           (1.2, 8.0, 20.0))]
-    with_plan = [_course_errors(*c) for c in cases]
+    with_plan = [uturn_course_errors(*c, (5.0, 30.0), "fix.plan_straight", plan=True)
+                 for c in cases]
     # once per leg at most (the first leg's start has no corner before it)
     assert all(n <= 2 for _, n in with_plan)
     assert 3 * sum(1 for _, n in with_plan if n >= 1) >= 2 * len(cases)
     # the filter's course on the new leg: better on the whole, never notably worse
     monkeypatch.setattr(ManeuverDetector, "plan_straight", lambda self, kf: False)
-    without = [_course_errors(*c)[0] for c in cases]
+    without = [uturn_course_errors(*c, (5.0, 30.0), "fix.plan_straight", plan=True)[0]
+               for c in cases]
     gains = [b - a for (a, _), b in zip(with_plan, without, strict=True)]
     assert min(gains) >= -2.0
     assert float(np.mean(gains)) >= 3.0

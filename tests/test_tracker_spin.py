@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from tracker_rig import run
+from tracker_rig import uturn_course_errors
 
 from zarco_core.lbl import LblNetworkParams
 from zarco_runtime.tracking.imm import Imm
@@ -68,34 +68,18 @@ def _fly(kf: Imm, man: ManeuverDetector, seed: int, speed: float, rate_dps: floa
     return out
 
 
-def _uturn_course_errors(speed: float, rate: float, spacing: float, seed: int
-                        ) -> tuple[float, int]:
-    """A lawnmower's U-turn (two 90° turns ``spacing`` m apart) in the acoustic
-    rig: the median error (deg) of the filter's course 10–60 s after it, and
-    the spurious turn rates set back."""
-    wps = [[100.0, 150.0], [220.0, 150.0], [220.0, 150.0 + spacing], [100.0, 150.0 + spacing]]
-    r = run(wps, 30.0 + (240.0 + spacing) / speed + 20.0, seed=seed, speed_mps=speed,
-            turn_rate_dps=rate, start_delay_s=30.0)
-    t_end = r.auv.turn_times()[-1] + 90.0 / rate
-    errs = [abs(math.degrees(math.remainder(
-        math.atan2(s.track.kf_vy_mps, s.track.kf_vx_mps) - s.truth.psi_rad, math.tau)))
-        for s in r.samples if t_end + 10.0 <= s.t <= t_end + 60.0 and s.track is not None]
-    assert len(errs) > 50
-    return float(np.median(errs)), r.tracker.counters().get("fix.spin", 0)
-
-
 def test_a_uturns_leftover_turn_rate_is_set_back_on_the_new_leg(
         monkeypatch: pytest.MonkeyPatch) -> None:
     cases = [(speed, rate, spacing, seed) for seed in (1, 2)
              for speed, rate, spacing in ((0.5, 7.5, 15.0), (0.7, 10.0, 12.0),
                                           (0.9, 8.0, 20.0))]
-    with_check = [_uturn_course_errors(*c) for c in cases]
+    with_check = [uturn_course_errors(*c, (10.0, 60.0), "fix.spin") for c in cases]
     # a U-turn leaves a turn rate the new leg does not bear out: set back at most
     # once (never on a straight leg), in most of them
     assert all(n <= 1 for _, n in with_check)
     assert sum(n for _, n in with_check) >= len(cases) - 2
     monkeypatch.setattr(ManeuverDetector, "spin", lambda self, kf: False)
-    without = [_uturn_course_errors(*c)[0] for c in cases]
+    without = [uturn_course_errors(*c, (10.0, 60.0), "fix.spin")[0] for c in cases]
     # the filter's course on the new leg: never worse, better on the whole
     gains = [b - a for (a, _), b in zip(with_check, without, strict=True)]
     assert min(gains) >= 0.0

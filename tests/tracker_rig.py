@@ -8,6 +8,7 @@ operator believes, beacons surveyed off, wrong turnarounds)."""
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -99,3 +100,22 @@ def vars_of(p: LblNetworkParams) -> dict[str, Any]:
     return {"beacons": [list(b) for b in p.beacons], "beacon_ids": list(p.beacon_ids),
             "turnaround_s": list(p.turnaround_s), "auv_delay_s": p.auv_delay_s,
             "sound_speed_mps": p.sound_speed_mps, "listener_beacon": p.listener_beacon}
+
+
+def uturn_course_errors(speed: float, rate: float, spacing: float, seed: int,
+                        after_s: tuple[float, float], counter: str,
+                        plan: bool = False) -> tuple[float, int]:
+    """A lawnmower's U-turn (two 90° turns at ``rate`` deg/s, ``spacing`` m apart)
+    flown at ``speed`` m/s (with its plan given to the tracker when ``plan``):
+    the median error (deg) of the filter's course from ``after_s[0]`` to
+    ``after_s[1]`` s after the U-turn ends, and the tracker's ``counter``."""
+    wps = [[100.0, 150.0], [220.0, 150.0], [220.0, 150.0 + spacing], [100.0, 150.0 + spacing]]
+    r = run(wps, 30.0 + (240.0 + spacing) / speed + 20.0, seed=seed, speed_mps=speed,
+            turn_rate_dps=rate, start_delay_s=30.0, plan=wps if plan else None)
+    t_end = r.auv.turn_times()[-1] + 90.0 / rate
+    errs = [abs(math.degrees(math.remainder(
+        math.atan2(s.track.kf_vy_mps, s.track.kf_vx_mps) - s.truth.psi_rad, math.tau)))
+        for s in r.samples
+        if t_end + after_s[0] <= s.t <= t_end + after_s[1] and s.track is not None]
+    assert len(errs) >= 1.5 * (after_s[1] - after_s[0])  # sampled every 0.5 s
+    return statistics.median(errs), r.tracker.counters().get(counter, 0)
