@@ -143,11 +143,17 @@ class ManeuverDetector:
         w, _ = kf.quiet_turn_rate
         if abs(w) < math.radians(QUIET_RATE_SIGMA_DPS):
             return False
+        self._straight(kf)
+        return True
+
+    def _straight(self, kf: Imm) -> None:
+        """The AUV flies straight: the quiet model's turn rate back to 0 (1σ
+        ``QUIET_RATE_SIGMA_DPS``), no arc, the path check's history restarted."""
         kf.reset_quiet_turn_rate(math.radians(QUIET_RATE_SIGMA_DPS) ** 2)
         self.arc_rate = 0.0
         self.arcing = False
+        self.arc_since = math.nan
         self.history.clear()
-        return True
 
     def spin(self, kf: Imm) -> bool:
         """After an update (filter time s, NED m): check the quiet model's turn
@@ -186,10 +192,7 @@ class ManeuverDetector:
         if self.spin_run < SPIN_CHECKS:
             return False
         self.spin_run = 0
-        kf.reset_quiet_turn_rate(math.radians(QUIET_RATE_SIGMA_DPS) ** 2)
-        self.arc_rate = 0.0
-        self.arcing = False
-        h.clear()
+        self._straight(kf)
         self.spins += 1
         return True
 
