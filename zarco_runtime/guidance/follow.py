@@ -215,8 +215,8 @@ class FollowGuidance:
             self.moving = False
         # a slow AUV far off (at the start, its track's course mostly noise): go to
         # it, not "ahead" of it on that course to wait for it
-        approach = (on_plan is None and v < SLOW_AUV_MPS
-                    and math.hypot(tg.x - x, tg.y - y) > APPROACH_FAR_M)
+        gap = math.hypot(tg.x - x, tg.y - y)  # the boat's distance to the target (m)
+        approach = on_plan is None and v < SLOW_AUV_MPS and gap > APPROACH_FAR_M
         if not (self.moving and v >= V_MIN_MPS) or approach:
             # AUV still: keep above it once its track has settled (going to where
             # the filter has it, so a start is followed before it is declared),
@@ -226,7 +226,7 @@ class FollowGuidance:
             # Far from it, a track still settling is good enough to close in on:
             # metres of uncertainty do not matter tens of metres away
             sigma = track.kf_pos_sigma_m
-            far = math.hypot(tg.x - x, tg.y - y) >= APPROACH_SIGMAS * max(sigma, 1.0)
+            far = gap >= APPROACH_SIGMAS * max(sigma, 1.0)
             # Once above it, an AUV starting off (its filter's σ grows while the
             # track restarts) is gone after at once, not waited for
             settled = bool(track.flags & TrackFlags.INITIALISED) and (
