@@ -10,7 +10,13 @@ beacon and the listener.  Before the filter runs, recent fixes decide:
   true position is common to both baselines, the mirrors are not);
 * with a single baseline the configured prior (``prior_north_m``,
   ``prior_east_m``, or where the track was lost) picks the side, and
-  ``reacquire_after`` fixes must agree with the choice.
+  ``reacquire_after`` fixes must agree with the choice;
+* so it does with several baselines that cannot tell the two solutions apart:
+  beacons (nearly) in a line have their mirrors across that one line, and
+  every other baseline's fix is near both solutions although its allowance
+  is under half their distance apart.  Once ``reacquire_after`` fixes are
+  (and at least twice as many as voted) with no majority, the network is
+  taken as one baseline there (the count ``mirror_prior``).
 
 The filter then starts from every remembered fix consistent with the choice
 (its two ranges linearised at the candidate nearest the choice).
@@ -54,7 +60,7 @@ class InitEntry:
 class Acquisition:
     """The fixes remembered for the vote, the refused ones, and the prior."""
 
-    __slots__ = ("buf", "depth", "net", "p", "prior", "rejected")
+    __slots__ = ("buf", "depth", "mirror_prior", "net", "p", "prior", "rejected")
 
     def __init__(self, params: TrackerParams, net: Network) -> None:
         self.p = params
@@ -66,6 +72,8 @@ class Acquisition:
         self.rejected: deque[InitEntry] = deque(maxlen=INIT_MEMORY)
         #: prior AUV position (NED m): resolves a single baseline's mirror
         self.prior = (params.prior_north_m, params.prior_east_m)
+        #: mirrors the prior resolved with several baselines in a line
+        self.mirror_prior = 0
 
     def clear(self) -> None:
         """Forget every remembered fix (after a loss or a clock jump)."""
@@ -95,45 +103,67 @@ class Acquisition:
         last = buf[-1]
         horizon = last.t - p.init_window_s
         recent = [e for e in buf if e.t >= horizon]
+        chosen = (self._by_prior(recent, last) if self.net.n - 1 <= 1
+                  else self._by_baselines(recent, last))
+        return None if chosen is None else (chosen, recent)
+
+    def _by_prior(self, recent: list[InitEntry], last: InitEntry
+                  ) -> tuple[float, float] | None:
+        """The solution of ``last`` nearer the prior, once ``reacquire_after``
+        recent fixes agree with it (a cycle mis-assembled from missed pings
+        gives a fix far off)."""
+        p = self.p
         c1 = (last.cf.x1, last.cf.y1)
         c2 = (last.cf.x2, last.cf.y2)
-        baselines = self.net.n - 1
-        chosen: tuple[float, float] | None = None
-        if baselines <= 1:
-            px, py = self.prior
-            chosen = c1 if math.dist(c1, (px, py)) <= math.dist(c2, (px, py)) else c2
-            # the prior only picks the side; ``reacquire_after`` fixes must agree
-            # (a cycle mis-assembled from missed pings gives a fix far off)
-            agree = sum(1 for e in recent if min(
-                math.dist((e.cf.x1, e.cf.y1), chosen), math.dist((e.cf.x2, e.cf.y2), chosen))
-                <= p.init_agree_m + p.max_speed_mps * abs(last.t - e.t))
-            if agree < p.reacquire_after:
-                return None
-        else:
-            v1 = v2 = 0
-            near_any = False
-            for e in recent:
-                if e.idx == last.idx:
-                    continue
-                allow = p.init_agree_m + p.max_speed_mps * abs(last.t - e.t)
-                e1 = (e.cf.x1, e.cf.y1)
-                e2 = (e.cf.x2, e.cf.y2)
-                ok1 = min(math.dist(c1, e1), math.dist(c1, e2)) <= allow
-                ok2 = min(math.dist(c2, e1), math.dist(c2, e2)) <= allow
-                near_any = near_any or ok1 or ok2
-                if ok1 and not ok2:
-                    v1 += 1
-                elif ok2 and not ok1:
-                    v2 += 1
-            if v1 > 2 * v2:  # a clear majority (outliers may vote too)
-                chosen = c1
-            elif v2 > 2 * v1:
-                chosen = c2
-            elif near_any and math.dist(c1, c2) <= p.init_agree_m:
-                chosen = c1  # near the baseline: both solutions agree anyway
-        if chosen is None:
-            return None
-        return chosen, recent
+        chosen = c1 if math.dist(c1, self.prior) <= math.dist(c2, self.prior) else c2
+        agree = sum(1 for e in recent if min(
+            math.dist((e.cf.x1, e.cf.y1), chosen), math.dist((e.cf.x2, e.cf.y2), chosen))
+            <= p.init_agree_m + p.max_speed_mps * abs(last.t - e.t))
+        return chosen if agree >= p.reacquire_after else None
+
+    def _by_baselines(self, recent: list[InitEntry], last: InitEntry
+                      ) -> tuple[float, float] | None:
+        """The solution of ``last`` the other baselines' fixes vote for; the
+        prior's when they cannot tell the two apart (module docstring)."""
+        p = self.p
+        c1 = (last.cf.x1, last.cf.y1)
+        c2 = (last.cf.x2, last.cf.y2)
+        sep = math.dist(c1, c2)
+        v1 = v2 = ties = 0
+        near_any = False
+        for e in recent:
+            if e.idx == last.idx:
+                continue
+            allow = p.init_agree_m + p.max_speed_mps * abs(last.t - e.t)
+            e1 = (e.cf.x1, e.cf.y1)
+            e2 = (e.cf.x2, e.cf.y2)
+            ok1 = min(math.dist(c1, e1), math.dist(c1, e2)) <= allow
+            ok2 = min(math.dist(c2, e1), math.dist(c2, e2)) <= allow
+            near_any = near_any or ok1 or ok2
+            if ok1 and ok2:
+                if allow < 0.5 * sep:
+                    # near both though it could tell them apart: the baselines
+                    # agree on the mirror too (a fix long ago allows too much
+                    # to tell anything)
+                    ties += 1
+            elif ok1:
+                v1 += 1
+            elif ok2:
+                v2 += 1
+        if v1 > 2 * v2:  # a clear majority (outliers may vote too)
+            return c1
+        if v2 > 2 * v1:
+            return c2
+        if near_any and sep <= p.init_agree_m:
+            return c1  # near the baseline: both solutions agree anyway
+        if ties >= p.reacquire_after and ties >= 2 * (v1 + v2):
+            # the baselines are in a line here: their fixes are near both
+            # solutions, the prior picks one as it does for a single baseline
+            chosen = self._by_prior(recent, last)
+            if chosen is not None:
+                self.mirror_prior += 1
+            return chosen
+        return None
 
     def init_filter(self, kf: CvKalman | Imm, recent: list[InitEntry], last: InitEntry,
                     chosen: tuple[float, float],

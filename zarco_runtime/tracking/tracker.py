@@ -72,7 +72,8 @@ Counters (:meth:`AuvTracker.counters`): ``event.<reason>`` for dropped events
 ``depth``, ``no_intersection``, ``innovation``, ``range_only_uninitialised``,
 ``init_pending``, ``inconsistent``: its ranges disagree with the other
 beacons') and for tracker events (``maneuver``, ``reacquired``, ``reanchored``,
-``clock_resync``, ``reply_refused``, ``spin``, ``plan_straight``), ``internal``
+``clock_resync``, ``reply_refused``, ``spin``, ``plan_straight``, ``mirror_prior``:
+the prior resolved the mirror of beacons in a line, :mod:`.acquire`), ``internal``
 for any unexpected exception (never raised: the tests assert it stays absent).
 
 Pure and deterministic: no I/O, no clock reads.
@@ -252,6 +253,8 @@ class AuvTracker:
         out = {f"event.{k}": v for k, v in self.cycles.dropped.items()}
         out.update({f"cycle.{k}": v for k, v in self.cycles.cycles_dropped.items()})
         out.update({(k if k == "internal" else f"fix.{k}"): v for k, v in self.dropped.items()})
+        if self.acq.mirror_prior:
+            out["fix.mirror_prior"] = self.acq.mirror_prior
         return out
 
     # ------------------------------------------------------------- clocks
