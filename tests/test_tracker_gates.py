@@ -104,3 +104,44 @@ def test_a_filter_sure_of_a_wrong_position_re_anchors_instead_of_coasting(seed: 
     assert tracker.counters().get("fix.reanchored", 0) > before
     # back within 2 m of the truth within 20 s, and it stays there
     assert max(e for dt, e in errs if dt >= 20.0) < 2.0
+
+
+@pytest.mark.parametrize("seed", [51, 52, 53])
+def test_one_range_agreeing_does_not_stop_a_re_anchoring(seed: int) -> None:
+    # two beacons: the listener's own cycles give one range, the other beacon's
+    # a position.  Move the filter 10 m across the listener's line of sight
+    # (its range barely changes) with a small covariance: the single ranges
+    # still pass, the positions are refused.  The refused positions must add
+    # up to a re-anchoring, not be reset by every single range in between
+    # (manoeuvre detection off: it would open the filter too)
+    two = BEACONS[:2]
+    r = run(LAWN, 120.0, seed=seed, start_delay_s=20.0,
+            lbl={"beacons": two, "turnaround_s": [0.1, 0.1]},
+            trk={"maneuver_threshold": 1e4, "turn_cusum_threshold": 1e4,
+                 "maneuver_on": 0.99, "maneuver_off": 0.98})
+    kf = r.tracker.kf
+    assert kf.initialised
+    lx, ly = two[0][0], two[0][1]  # the listener (beacon 0)
+    rx, ry = kf.x[0] - lx, kf.x[1] - ly
+    n = math.hypot(rx, ry)
+    for m in getattr(kf, "models", [kf]):
+        m.x[0] -= ry / n * 10.0  # across the line of sight
+        m.x[1] += rx / n * 10.0
+        for i in range(len(m.P)):
+            for j in range(len(m.P)):
+                m.P[i][j] *= 0.01 if i == j else 0.0
+    if hasattr(kf, "_combine"):
+        kf._combine()
+    before = r.tracker.counters().get("fix.reanchored", 0)
+    t0 = r.samples[-1].t
+    world, tracker = r.world, r.tracker
+    errs = []
+    t = t0
+    while t < t0 + 60.0:
+        t += 0.5
+        for ev in world.events_exact_until(t):
+            tracker.process(ev)
+        tr = world.auv_truth(kf.t - world.epoch0_s)
+        errs.append((t - t0, math.hypot(kf.x[0] - tr.x_m, kf.x[1] - tr.y_m)))
+    assert tracker.counters().get("fix.reanchored", 0) > before
+    assert max(e for dt, e in errs if dt >= 30.0) < 3.5

@@ -556,7 +556,7 @@ class AuvTracker:
         self._last_range_only = True
         if self.net.n < 3:
             self._observe_noise(res.d2, 1)
-        self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out)
+        self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out, position=False)
         var0 = res.var / self.noise.scale
         self._calibrate(cyc, res.t_em, idx, res.bias, False, var0, var0)
         return True
@@ -590,14 +590,18 @@ class AuvTracker:
     # ------------------------------------------------------------ updates
 
     def _accepted(self, t_em: float, t: float, fx: float, fy: float, fix_var: float,
-                  out: Out) -> None:
-        """After an accepted filter update at emission time ``t_em``: RLS, track."""
+                  out: Out, position: bool = True) -> None:
+        """After an accepted filter update at emission time ``t_em``: RLS, track.
+        ``position``: the update fixed the position (two ranges or more), which
+        ends a run of refused fixes; one range alone agrees with a filter gone
+        off along it, and does not."""
         p = self.p
         kf = self.kf
         rls = self.rls
         man = self.man
         self.fixes_accepted += 1
-        self._refused_run = 0
+        if position:
+            self._refused_run = 0
         self._last_update_utc = t_em
         drops = self.cycles.cycles_dropped
         self._drops_at_update = drops["missed_ping"] + drops["superseded"] + drops["sequence"]
