@@ -9,12 +9,7 @@ import math
 import pytest
 
 from zarco_core.auv_messages import AuvPlan, AuvTrack, TrackFlags
-from zarco_runtime.guidance.follow import (
-    PLAN_KF_GATE_M,
-    FollowGuidance,
-    FollowSettings,
-    target_now,
-)
+from zarco_runtime.guidance.follow import FollowGuidance, FollowSettings, target_now
 
 VALID = int(TrackFlags.INITIALISED | TrackFlags.LINE_VALID)
 
@@ -233,42 +228,3 @@ def test_a_slow_auv_far_off_is_gone_to_whatever_its_course_says() -> None:
     g2 = FollowGuidance(cfg)
     _moving(g2, fast)
     assert g2.update(fast, fast.t, 20.0, 0.0).speed_ref_mps == cfg.min_speed_mps
-
-
-def test_the_plan_is_left_where_the_filter_is_far_from_it() -> None:
-    """About a corner of its plan the boat follows the plan's target, unless
-    the filter has the AUV further than ``PLAN_KF_GATE_M`` (+ 3σ) from it — the
-    AUV went on where its plan turns — and takes it again within half of that."""
-    cfg = FollowSettings()
-    g = FollowGuidance(cfg)
-    g.set_plan(AuvPlan(0.0, ((0.0, 0.0), (100.0, 0.0), (100.0, -20.0), (0.0, -20.0)),
-                       "mission"))
-
-    def at(s: float, kx: float, ky: float, t: float) -> AuvTrack:
-        """The AUV at path coordinate ``s`` of its plan (1 m/s along it), the
-        filter at (kx, ky) flying north at 1 m/s."""
-        return dataclasses.replace(_track(x=kx, y=ky, kf=(kx, ky, 1.0, 0.0), t=t),
-                                   plan_leg=0 if s < 100.0 else 1, plan_s_m=s,
-                                   plan_speed_mps=1.0, plan_cross_m=0.0,
-                                   plan_turn_radius_m=6.0)
-
-    gate = PLAN_KF_GATE_M + 3.0 * 0.5  # the tracks' filter σ is 0.5 m
-    tr = at(95.0, 95.0, 0.0, 100.0)
-    _moving(g, tr)
-    assert g.update(tr, tr.t, 94.0, 0.0).target == "plan"
-    # 11 s later the plan has the AUV round the corner, the filter straight on
-    tr = at(106.0, 106.0, 0.0, 111.0)
-    plan_pos = g.plan.point_at(106.0, 0.0, 6.0) if g.plan is not None else (0.0, 0.0)
-    apart = math.hypot(plan_pos[0] - 106.0, plan_pos[1])
-    assert apart > gate  # the case is what it says
-    assert g.update(tr, tr.t, 104.0, 0.0).target != "plan"
-    # back within the gate but not within half of it: still left
-    s_mid = 101.0
-    mid = g.plan.point_at(s_mid, 0.0, 6.0) if g.plan is not None else (0.0, 0.0)
-    kx = mid[0] + 0.75 * gate
-    tr = at(s_mid, kx, mid[1], 112.0)
-    assert 0.5 * gate < math.hypot(mid[0] - kx, mid[1]) < gate
-    assert g.update(tr, tr.t, kx - 1.0, 0.0).target != "plan"
-    # within half of it: the plan's target again
-    tr = at(s_mid, mid[0] + 0.2 * gate, mid[1], 113.0)
-    assert g.update(tr, tr.t, mid[0], 0.0).target == "plan"

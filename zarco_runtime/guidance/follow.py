@@ -93,11 +93,6 @@ APPROACH_SIGMAS = 4.0
 #: legs, the track's
 PLAN_CORNER_ZONE_M = 12.0
 PLAN_AFTER_CORNER_S = 20.0
-#: the plan's target is left while it is further than this (m, plus 3 position
-#: σ of the filter) from the filter's own position — the AUV did not turn
-#: where its plan does, or the progress on the plan re-anchored elsewhere — and
-#: taken again once within half of it
-PLAN_KF_GATE_M = 5.0
 #: above an AUV waiting on its plan, the boat this far ahead of it on its first
 #: leg (m, within the hold radius of the leg) waits there for it
 ABOVE_AHEAD_M = 5.0
@@ -164,8 +159,6 @@ class FollowGuidance:
         self._plan_msg: AuvPlan | None = None
         self._sm_plan: tuple[float, float, float] | None = None
         self._plan_leg_id = -1
-        #: the plan's target is left (too far from the filter's position)
-        self._plan_apart = False
         #: when (s) the AUV was last followed on its plan, and the plan's course there
         self._plan_course: tuple[float, float] | None = None
 
@@ -375,9 +368,6 @@ class FollowGuidance:
                 and since > max(zone, math.hypot(tg.vx, tg.vy) * PLAN_AFTER_CORNER_S)):
             self._sm_plan = None
             return None
-        if self._apart(track, tg, t):
-            self._sm_plan = None
-            return None
         v = math.hypot(tg.vx, tg.vy)
         r = path.radius
         sm = self._sm_plan
@@ -398,20 +388,6 @@ class FollowGuidance:
         self._sm_plan = (t, path.s, path.cross)
         self._sm = (t, tg.x, tg.y)  # plan-free following continues from here
         return tg, path
-
-    def _apart(self, track: AuvTrack, tg: Target, t: float) -> bool:
-        """Whether the plan's target ``tg`` is too far from the filter's
-        position at ``t`` to be followed (``PLAN_KF_GATE_M``, with hysteresis)."""
-        dt = t - track.t0
-        kx = track.kf_x_m + track.kf_vx_mps * dt
-        ky = track.kf_y_m + track.kf_vy_mps * dt
-        sigma = track.kf_pos_sigma_m if math.isfinite(track.kf_pos_sigma_m) else 0.0
-        gate = PLAN_KF_GATE_M + 3.0 * sigma
-        gap = math.hypot(tg.x - kx, tg.y - ky)
-        if not math.isfinite(gap):
-            return False
-        self._plan_apart = gap > (0.5 * gate if self._plan_apart else gate)
-        return self._plan_apart
 
     def _smooth(self, tg: Target, t: float) -> Target:
         """The target's position low-passed over ``target_tau_s`` about its own
