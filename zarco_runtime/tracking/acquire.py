@@ -14,9 +14,9 @@ beacon and the listener.  Before the filter runs, recent fixes decide:
 * so it does with several baselines that cannot tell the two solutions apart:
   beacons (nearly) in a line have their mirrors across that one line, and
   every other baseline's fix is near both solutions although its allowance
-  is under half their distance apart.  Once ``reacquire_after`` fixes are
-  (and at least twice as many as voted) with no majority, the network is
-  taken as one baseline there (the count ``mirror_prior``).
+  is under half their distance apart.  With at least ``reacquire_after``
+  such fixes (and twice as many as voted either way) and no majority, the
+  network is taken as one baseline there (the count ``mirror_prior``).
 
 The filter then starts from every remembered fix consistent with the choice
 (its two ranges linearised at the candidate nearest the choice).
