@@ -228,3 +228,19 @@ def test_a_slow_auv_far_off_is_gone_to_whatever_its_course_says() -> None:
     g2 = FollowGuidance(cfg)
     _moving(g2, fast)
     assert g2.update(fast, fast.t, 20.0, 0.0).speed_ref_mps == cfg.min_speed_mps
+
+
+def test_going_to_a_still_auv_the_leg_points_at_it_whatever_the_boat_drifts() -> None:
+    """The boat drifting backwards (its course over ground 180° off where it
+    must go) is sent straight at a still AUV 20 m to the north, not round the
+    long way by a leg held within 90° of its course over ground (which is for a
+    boat following a moving AUV through a reversal)."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    still = _track(x=20.0, vx=0.02, sv=0.03)
+    st = None
+    for k in range(15):  # drifting south at 0.9 m/s for 1.4 s
+        t = 100.0 + 0.1 * k
+        st = g.update(dataclasses.replace(still, t=t, t0=t), t, -0.09 * k, 0.0)
+    assert st is not None and st.leg is not None and not g.moving
+    assert st.leg.course_rad == pytest.approx(0.0, abs=math.radians(2.0))

@@ -432,7 +432,7 @@ class FollowGuidance:
             self._psi_ref = None
             return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
                                heading_rad=course)
-        psi = self._steer(math.atan2(tg.y - y, tg.x - x), t)
+        psi = self._steer(math.atan2(tg.y - y, tg.x - x), t, lead_cog=False)
         if self._psi_leg is None or abs(math.remainder(psi - self._psi_leg, math.tau)) > \
                 math.radians(cfg.new_line_deg):
             self.leg_id += 1
@@ -459,17 +459,22 @@ class FollowGuidance:
                      else None)
         self._last_pos = (t, x, y)
 
-    def _steer(self, psi: float, t: float) -> float:
+    def _steer(self, psi: float, t: float, lead_cog: bool = True) -> float:
         """The virtual leg's course towards ``psi`` (rad): turning no faster than
-        ``max_turn_rate_dps``, and never more than ``MAX_LEAD_RAD`` off the
-        boat's course over ground while it moves (a reversal is taken as a
-        turn the boat can follow, not as a heading error of 180°)."""
+        ``max_turn_rate_dps``, and, with ``lead_cog``, never more than
+        ``MAX_LEAD_RAD`` off the boat's course over ground while it moves (a
+        reversal behind a moving AUV is taken as a turn the boat can follow,
+        not as a heading error of 180°).  Going to a still AUV the leg points
+        at it whatever the boat's course over ground: that course is then a
+        drift (current, backing off, a pivot), and holding the leg within 90°
+        of it sent the boat round the long way (a full turn before it set
+        off)."""
         ref = self._psi_ref
         if ref is not None and self._t_ref is not None and t > self._t_ref:
             step = math.radians(self.cfg.max_turn_rate_dps) * (t - self._t_ref)
             dpsi = math.remainder(psi - ref, math.tau)
             psi = ref + max(-step, min(step, dpsi))
-        if self._cog is not None:
+        if lead_cog and self._cog is not None:
             off = math.remainder(psi - self._cog, math.tau)
             psi = self._cog + max(-MAX_LEAD_RAD, min(MAX_LEAD_RAD, off))
         self._psi_ref, self._t_ref = psi, t
