@@ -464,11 +464,11 @@ class FollowGuidance:
         ``max_turn_rate_dps``, and, with ``lead_cog``, never more than
         ``MAX_LEAD_RAD`` off the boat's course over ground while it moves (a
         reversal behind a moving AUV is taken as a turn the boat can follow,
-        not as a heading error of 180°).  Going to a still AUV the leg points
-        at it whatever the boat's course over ground: that course is then a
-        drift (current, backing off, a pivot), and holding the leg within 90°
-        of it sent the boat round the long way (a full turn before it set
-        off)."""
+        not as a heading error of 180°).  Going to a still AUV (or a slow one
+        far off, :meth:`_above`) the leg points at it whatever the boat's
+        course over ground: that course is then a drift (current, backing
+        off, a pivot), and holding the leg within 90° of it sent the boat
+        round the long way (a full turn before it set off)."""
         ref = self._psi_ref
         if ref is not None and self._t_ref is not None and t > self._t_ref:
             step = math.radians(self.cfg.max_turn_rate_dps) * (t - self._t_ref)
