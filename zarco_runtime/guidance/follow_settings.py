@@ -38,9 +38,10 @@ class FollowSettings:
                               "onto the AUV's track at atan(offset/Δ); shorter turns the "
                               "boat sooner after the AUV turns, too short steers the fixes' "
                               "noise", min=0.5, max=100.0)
-    max_turn_rate_dps: float = spec(25.0, "deg/s", "the virtual leg's course turns no "
+    max_turn_rate_dps: float = spec(40.0, "deg/s", "the virtual leg's course turns no "
                                     "faster than this (the estimate's jitter is not "
-                                    "steered)", min=1.0, max=360.0)
+                                    "steered; slower lets the boat trail turns)",
+                                    min=1.0, max=360.0)
     catchup_tau_s: float = spec(5.0, "s", "time constant of closing an along-track gap "
                                 "(speed reference v_AUV + gap/τ)", min=0.5, max=600.0)
     target_tau_s: float = spec(3.0, "s", "the AUV's position is low-passed over this about "
