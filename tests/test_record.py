@@ -247,11 +247,15 @@ def test_disk_floor_stops_recording_with_a_fault_not_the_run(tmp_path: Path) -> 
     events = [e for e in res.extra["events"] if e.source == "recorder"]
     assert any(e.kind == "fault" and "below the floor" in e.text for e in events), events
     assert not (tmp_path / "full.mcap").exists()
-    # zarco sim: a recording asked for and not written ends the run, and says why
+    # zarco sim: a recording asked for and not written ends the run, and says why.
+    # The writer is a process of its own: when its word reaches the simulation's
+    # virtual clock depends on the machine's load (6 s alone, 10 s on a loaded
+    # machine), so the limit here is far off and the stop reason is what counts
+    scn = load_scenario(ROOT / "config" / "scenarios" / "rectangle.toml",
+                        ["scenario.max_duration_s=120", "runtime.record.min_free_mb=1e7"])
     res = run_scenario(scn, record=str(tmp_path / "full.mcap"))
     assert res.report["stop"].startswith("recording failed at ")
-    # ended at the recorder's first check of the disk, long before the 20 s limit
-    assert res.report["sim_seconds"] < 10.0 and "below the floor" in res.extra["record_error"]
+    assert res.report["sim_seconds"] < 120.0 and "below the floor" in res.extra["record_error"]
     assert res.extra["record_paths"] == [] and not (tmp_path / "full.mcap").exists()
 
 
