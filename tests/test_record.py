@@ -406,4 +406,10 @@ def test_a_killed_writer_leaves_a_file_every_reader_reads_to_its_cut(tmp_path: P
                     n += 1
             except EndOfFile:  # the cut: every message before it was read
                 pass
+            except struct.error:
+                # a cut inside a message index's fixed fields: mcap's reader
+                # fails on the short read instead of raising EndOfFile; it is
+                # still the cut (the reader is at the file's end), not a record
+                # it could not skip in the middle
+                assert fh.tell() == path.stat().st_size
         assert n > 0
