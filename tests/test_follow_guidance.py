@@ -9,7 +9,12 @@ import math
 import pytest
 
 from zarco_core.auv_messages import AuvPlan, AuvTrack, TrackFlags
-from zarco_runtime.guidance.follow import FollowGuidance, FollowSettings, target_now
+from zarco_runtime.guidance.follow import (
+    FACE_COURSE_MPS,
+    FollowGuidance,
+    FollowSettings,
+    target_now,
+)
 
 VALID = int(TrackFlags.INITIALISED | TrackFlags.LINE_VALID)
 
@@ -244,3 +249,79 @@ def test_going_to_a_still_auv_the_leg_points_at_it_whatever_the_boat_drifts() ->
         st = g.update(dataclasses.replace(still, t=t, t0=t), t, -0.09 * k, 0.0)
     assert st is not None and st.leg is not None and not g.moving
     assert st.leg.course_rad == pytest.approx(0.0, abs=math.radians(2.0))
+
+
+def test_an_auv_setting_off_is_followed_on_its_filter_before_its_line_sees_it() -> None:
+    """The RLS line, fitted over seconds of fixes, still says 0.05 m/s while
+    the filter already has the AUV at 0.6 m/s to the east: the AUV is taken to
+    move and the boat steers after it on the filter's course; when the filter
+    slows again below the still speed, it is still again."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    still = _track(vx=0.05, sv=0.03)
+    assert g.update(still, 100.0, 0.2, 0.0).leg is None and not g.moving
+    off = _track(vx=0.05, sv=0.03, kf=(0.0, 0.5, 0.0, 0.6), t=101.0)
+    st = g.update(off, 101.0, 0.2, 0.0)
+    assert g.moving and g.target is not None and g.target.source == "kf"
+    assert st.leg is not None and st.speed_ref_mps > 0.0
+    # the leg heads east, the filter's course, not north along the line
+    assert st.leg.course_rad == pytest.approx(math.pi / 2, abs=math.radians(20.0))
+    # below the speed the filter alone is trusted with, the line decides
+    creeping = _track(vx=0.05, sv=0.03, kf=(0.0, 0.5, 0.0, 0.45), t=101.0)
+    g2 = FollowGuidance(cfg)
+    g2.update(still, 100.0, 0.2, 0.0)
+    g2.update(creeping, 101.0, 0.2, 0.0)
+    assert not g2.moving
+    stopped = _track(vx=0.05, sv=0.03, kf=(0.0, 1.0, 0.0, 0.1), t=103.0)
+    g.update(stopped, 103.0, 0.0, 1.0)
+    assert not g.moving
+
+
+def test_the_line_is_not_followed_when_its_speed_lags_the_filter() -> None:
+    cfg = FollowSettings()
+    lagging = _track(vx=0.05, kf=(0.0, 0.0, 0.6, 0.0))
+    tg = target_now(lagging, 100.0, cfg.line_gate_m, math.radians(20.0))
+    assert tg.source == "kf" and tg.vx == 0.6
+    agreeing = _track(vx=1.0, kf=(0.0, 0.0, 1.2, 0.0))
+    assert target_now(agreeing, 100.0, cfg.line_gate_m, math.radians(20.0)).source == "line"
+
+
+def test_above_a_still_auv_the_boat_faces_the_filter_course_once_it_passes_a_threshold() -> None:
+    """Above a hovering AUV (no plan), the filter's speed passing
+    ``FACE_COURSE_MPS`` turns the boat, in place, to the filter's course — the
+    way the AUV may be setting off; below it the heading is left alone.
+    Facing it is all: a boat 3 m ahead of the AUV on that course (a course
+    that may be noise) goes back to it rather than waiting there."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    course = math.radians(120.0)
+
+    def kf(speed: float) -> tuple[float, float, float, float]:
+        return (0.0, 0.0, speed * math.cos(course), speed * math.sin(course))
+
+    drifting = _track(vx=0.04, sv=0.03, kf=kf(1.5 * FACE_COURSE_MPS))
+    st = g.update(drifting, 100.0, 0.3, 0.3)
+    assert st.leg is None and not g.moving
+    assert st.heading_rad == pytest.approx(course)
+    quiet = _track(vx=0.04, sv=0.03, kf=kf(0.7 * FACE_COURSE_MPS))
+    assert math.isnan(g.update(quiet, 101.0, 0.3, 0.3).heading_rad)
+    ahead = g.update(drifting, 102.0, 3.0 * math.cos(course), 3.0 * math.sin(course))
+    assert ahead.leg is not None and ahead.speed_ref_mps > 0.0
+
+
+def test_an_auv_setting_off_from_under_the_boat_is_steered_at_whatever_the_boat_drifts() -> None:
+    """Hovering, the boat drifts south at 0.5 m/s (its course over ground
+    180°); the AUV sets off north: the leg points north, after it, not held
+    within 90° of the drift (which is for a boat following at speed through
+    a reversal)."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    still = _track(vx=0.03, sv=0.03)
+    for k in range(10):
+        t = 100.0 + 0.2 * k
+        g.update(dataclasses.replace(still, t=t, t0=t), t, 0.5 - 0.1 * k, 0.0)
+    assert not g.moving
+    off = _track(vx=0.03, sv=0.03, kf=(0.5, 0.0, 0.8, 0.0), t=102.0)
+    st = g.update(off, 102.0, -0.5, 0.0)
+    assert g.moving and st.leg is not None
+    assert st.leg.course_rad == pytest.approx(0.0, abs=math.radians(10.0))

@@ -45,7 +45,11 @@ large, or the tracker says so) the boat slows down and holds the position
 where it lost it, and resumes following when the track is back.  Above a
 still AUV it keeps within ``hold_radius_m`` of the filter's position once the
 track has settled, going back there (faster the further it is) when it
-drifts off or the AUV starts to move.  A slow AUV (below ``SLOW_AUV_MPS``)
+drifts off or the AUV starts to move; without a plan it faces the way the
+filter has the AUV creeping (``FACE_COURSE_MPS``), which is the way it sets
+off when it does, and takes it to move once the boat has held above it and
+the filter's speed alone passes ``KF_MOVING_MPS`` (the RLS line, fitted over
+seconds of fixes, lags a start), pivoting straight after it.  A slow AUV (below ``SLOW_AUV_MPS``)
 further than ``APPROACH_FAR_M`` is gone to the same way, whatever course its
 track says: at the start a still AUV's track can creep along a course that is
 noise, and the line-of-sight law would have the boat wait "ahead" of it.
@@ -103,6 +107,17 @@ PLAN_COURSE_HOLD_S = 10.0
 #: one is, whatever course its track says
 SLOW_AUV_MPS = 0.45
 APPROACH_FAR_M = 10.0
+#: the filter alone takes the AUV to be moving above this speed (m/s): the
+#: RLS line, fitted over seconds of fixes, lags an AUV setting off
+KF_MOVING_MPS = 0.5
+#: above a still AUV without a plan, the boat faces the filter's course once
+#: its speed passes this (m/s).  Facing a course that is noise costs nothing
+#: (whatever way the boat faces, the AUV sets off in a direction it does not
+#: know), facing the way the AUV sets off saves a pivot
+FACE_COURSE_MPS = 0.2
+#: for this long (s) after an AUV the boat held above sets off, the virtual
+#: leg is not held within MAX_LEAD_RAD of the boat's course over ground
+SET_OFF_S = 10.0
 #: length of the virtual leg laid past the aim point (m)
 LEG_PAST_AIM_M = 100.0
 #: the paper law's leg starts this far behind the AUV and ends this far ahead (m)
@@ -120,7 +135,8 @@ class FollowState:
     ``plan``); ``k_s`` (N/m), ``k_i`` (N/(m s)): the surge gains on
     ``along_error_m`` of the law in use; ``heading_rad``: without a leg, the
     heading to keep (NaN: the present one) — above an AUV waiting on its plan,
-    the course it will leave on.
+    the course it will leave on; without a plan, the filter's course once it
+    has the AUV creeping.
     """
 
     mode: str  # "follow", "hold" (track lost), "wait" (no track yet)
@@ -154,6 +170,11 @@ class FollowGuidance:
         self._cog: float | None = None
         self._sm: tuple[float, float, float] | None = None
         self._was_above = False
+        #: the boat has drifted within the hold radius above a still AUV since
+        #: the AUV was last taken to move
+        self._hovered = False
+        #: when (s) an AUV the boat held above was taken to set off
+        self._set_off_t = -math.inf
         #: the AUV's plan (set_plan) and the target's smoothed (t, s, cross) on it
         self.plan: Plan | None = None
         self._plan_msg: AuvPlan | None = None
@@ -204,14 +225,22 @@ class FollowGuidance:
         cov = track.cov
         sv = math.sqrt(max(0.5 * (cov[10] + cov[15]), 0.0)) if len(cov) == 16 else 0.0
         v_line = math.hypot(track.vx_mps, track.vy_mps)
+        v_kf = math.hypot(track.kf_vx_mps, track.kf_vy_mps)
         if on_plan is not None:
             # on its plan the tracker's speed along it says it (a still AUV waiting
             # at its plan's start is seen moving off along its first leg within
             # a fix or two)
             self.moving = v >= (0.5 if self.moving else 1.0) * cfg.still_speed_mps
         elif not self.moving:
-            self.moving = v_line >= max(cfg.still_speed_mps, MOVING_SIGMAS * sv)
-        elif v_line + 2.0 * sv < cfg.still_speed_mps:
+            # the filter's speed alone once the boat has held above the AUV: it
+            # is then setting off (the first velocities of a track are noise)
+            self.moving = (v_line >= max(cfg.still_speed_mps, MOVING_SIGMAS * sv)
+                           or (self._hovered
+                               and v_kf >= max(cfg.still_speed_mps, KF_MOVING_MPS)))
+            if self.moving and self._hovered:
+                self._hovered = False
+                self._set_off_t = t
+        elif v_line + 2.0 * sv < cfg.still_speed_mps and v_kf < cfg.still_speed_mps:
             self.moving = False
         # a slow AUV far off (at the start, its track's course mostly noise): go to
         # it, not "ahead" of it on that course to wait for it
@@ -241,8 +270,14 @@ class FollowGuidance:
             course = (path.course_at(0.0) if on_plan is not None
                       else pc[1] if self.plan is not None and pc is not None
                       and t - pc[0] <= PLAN_COURSE_HOLD_S else math.nan)
+            # without it, the filter's course once its speed passes
+            # FACE_COURSE_MPS: the AUV may be setting off that way, and a boat
+            # facing it sets off after it without a pivot (to face only: on a
+            # course that may be noise, the boat does not wait ahead of it)
+            face = (math.atan2(track.kf_vy_mps, track.kf_vx_mps)
+                    if v_kf >= FACE_COURSE_MPS else math.nan)
             return self._above(tg, t, x, y, course,
-                               "closing in on a slow AUV" if self.moving else "")
+                               "closing in on a slow AUV" if self.moving else "", face)
         self.hold = None
         self.mode = "follow"
         if cfg.law == "paper":
@@ -260,7 +295,10 @@ class FollowGuidance:
         look = max(cfg.lookahead_m - max(-a, 0.0), MIN_LOOKAHEAD_FRACTION * cfg.lookahead_m)
         ahead = max(a, 0.0) + look
         ax, ay = path.point(ahead)
-        psi = self._steer(math.atan2(ay - y, ax - x), t)
+        # just after the AUV set off from under the boat, the boat's course over
+        # ground is its drift and its first surge before it has pivoted: no lead
+        psi = self._steer(math.atan2(ay - y, ax - x), t,
+                          lead_cog=t - self._set_off_t > SET_OFF_S)
         self._new_leg(psi)
         if isinstance(path, PlanPath):
             # be at the aim point when the AUV is: its straight distance from the
@@ -408,7 +446,8 @@ class FollowGuidance:
         return Target(x, y, tg.vx, tg.vy, tg.source)
 
     def _above(self, tg: Target, t: float, x: float, y: float,
-               course: float = math.nan, reason: str = "") -> FollowState:
+               course: float = math.nan, reason: str = "",
+               face: float = math.nan) -> FollowState:
         """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
         position (facing ``course``, rad, when it is known: on its plan, the
         AUV will leave along it — and ahead of it on that course, up to
@@ -416,7 +455,8 @@ class FollowGuidance:
         else go there at the speed the AUV moves away (its estimate's, while
         it is not yet taken to move) plus the gap over ``catchup_tau_s``.
         ``reason``: what the state says when the AUV is not still (a slow AUV
-        far off)."""
+        far off); ``face``: without ``course``, the heading (rad) to keep
+        above it (NaN: the present one)."""
         cfg = self.cfg
         self._was_above = True
         self.hold = None
@@ -429,9 +469,10 @@ class FollowGuidance:
             lead, side = -(dx * cc + dy * sc), -dx * sc + dy * cc
             waiting = 0.0 <= lead <= ABOVE_AHEAD_M and abs(side) <= cfg.hold_radius_m
         if dist <= cfg.hold_radius_m or waiting:
+            self._hovered = True
             self._psi_ref = None
             return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
-                               heading_rad=course)
+                               heading_rad=course if math.isfinite(course) else face)
         psi = self._steer(math.atan2(tg.y - y, tg.x - x), t, lead_cog=False)
         if self._psi_leg is None or abs(math.remainder(psi - self._psi_leg, math.tau)) > \
                 math.radians(cfg.new_line_deg):

@@ -33,6 +33,9 @@ from zarco_runtime.tracking.plan import Plan
 
 #: a speed along the plan below minus this (m/s) is the AUV going backwards
 BACKWARDS_MPS = 0.2
+#: the RLS line is used only while its speed agrees with the filter's within
+#: this (m/s): fitted over seconds of fixes, it lags an AUV setting off
+LINE_SPEED_GATE_MPS = 0.4
 #: the boat is located on a plan path within this of the target's path coordinate (m)
 LOCATE_WINDOW_M = 30.0
 
@@ -54,8 +57,9 @@ def target_now(track: AuvTrack, t: float, line_gate_m: float,
     """The AUV's position and velocity at runtime time ``t``: the Kalman
     filter's position, carried to ``t`` with the RLS line's velocity while the
     line is valid, settled (not just restarted by a turn) and consistent with
-    the filter (positions within ``line_gate_m`` + 3σ, courses within
-    ``line_course_gate_rad``), else with the filter's own velocity."""
+    the filter (positions within ``line_gate_m`` + 3σ, speeds within
+    ``LINE_SPEED_GATE_MPS``, courses within ``line_course_gate_rad``), else
+    with the filter's own velocity."""
     dt = t - track.t0
     kvx, kvy = track.kf_vx_mps, track.kf_vy_mps
     kf = Target(track.kf_x_m + kvx * dt, track.kf_y_m + kvy * dt, kvx, kvy, "kf")
@@ -68,6 +72,8 @@ def target_now(track: AuvTrack, t: float, line_gate_m: float,
         return kf
     sigma = track.kf_pos_sigma_m if math.isfinite(track.kf_pos_sigma_m) else 0.0
     if math.hypot(lx - kf.x, ly - kf.y) > line_gate_m + 3.0 * sigma:
+        return kf
+    if abs(math.hypot(kvx, kvy) - math.hypot(track.vx_mps, track.vy_mps)) > LINE_SPEED_GATE_MPS:
         return kf
     if math.hypot(kvx, kvy) > 0.05 and abs(math.remainder(
             math.atan2(kvy, kvx) - math.atan2(track.vy_mps, track.vx_mps), math.tau)
