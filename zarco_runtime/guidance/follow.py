@@ -48,11 +48,12 @@ track has settled, going back there (faster the further it is) when it
 drifts off or the AUV starts to move; without a plan it faces the way the
 filter has the AUV creeping (``FACE_COURSE_MPS``), which is the way it sets
 off when it does, and takes it to move once the boat has held above it and
-the filter's speed alone passes ``KF_MOVING_MPS`` (the RLS line, fitted over
-seconds of fixes, lags a start), pivoting straight after it.  A slow AUV (below ``SLOW_AUV_MPS``)
-further than ``APPROACH_FAR_M`` is gone to the same way, whatever course its
-track says: at the start a still AUV's track can creep along a course that is
-noise, and the line-of-sight law would have the boat wait "ahead" of it.
+the filter's speed alone passes 0.5 m/s (:mod:`.follow_motion`: the RLS
+line, fitted over seconds of fixes, lags a start), pivoting straight after
+it.  A slow AUV (below ``SLOW_AUV_MPS``) further than ``APPROACH_FAR_M``
+is gone to the same way, whatever course its track says: at the start a
+still AUV's track can creep along a course that is noise, and the
+line-of-sight law would have the boat wait "ahead" of it.
 """
 
 from __future__ import annotations
@@ -61,6 +62,7 @@ import math
 from dataclasses import dataclass
 
 from zarco_core.auv_messages import AuvPlan, AuvTrack, TrackFlags
+from zarco_runtime.guidance.follow_motion import AuvMotion
 from zarco_runtime.guidance.follow_paper import follow_geometry
 from zarco_runtime.guidance.follow_path import (
     PlanPath,
@@ -86,8 +88,6 @@ COG_WINDOW_S = 0.5
 COG_MIN_MPS = 0.25
 #: the virtual leg leads the boat's course over ground by at most this (rad)
 MAX_LEAD_RAD = math.radians(90.0)
-#: the AUV moves when its line's speed exceeds this many standard deviations
-MOVING_SIGMAS = 3.0
 #: a still AUV further than this many position σ (and 1 m) is closed in on
 #: before its track has settled
 APPROACH_SIGMAS = 4.0
@@ -107,9 +107,6 @@ PLAN_COURSE_HOLD_S = 10.0
 #: one is, whatever course its track says
 SLOW_AUV_MPS = 0.45
 APPROACH_FAR_M = 10.0
-#: the filter alone takes the AUV to be moving above this speed (m/s): the
-#: RLS line, fitted over seconds of fixes, lags an AUV setting off
-KF_MOVING_MPS = 0.5
 #: above a still AUV without a plan, the boat faces the filter's course once
 #: its speed passes this (m/s).  Facing a course that is noise costs nothing
 #: (whatever way the boat faces, the AUV sets off in a direction it does not
@@ -161,8 +158,8 @@ class FollowGuidance:
         self.hold: tuple[float, float] | None = None
         self.mode = "wait"
         self.target: Target | None = None
-        #: whether the AUV is taken to be moving (hysteresis, see update)
-        self.moving = False
+        #: whether the AUV is taken to be moving (:mod:`.follow_motion`)
+        self.motion = AuvMotion(cfg.still_speed_mps)
         self._psi_ref: float | None = None
         self._t_ref: float | None = None
         self._t_now = 0.0
@@ -170,11 +167,6 @@ class FollowGuidance:
         self._cog: float | None = None
         self._sm: tuple[float, float, float] | None = None
         self._was_above = False
-        #: the boat has drifted within the hold radius above a still AUV since
-        #: the AUV was last taken to move
-        self._hovered = False
-        #: when (s) an AUV the boat held above was taken to set off
-        self._set_off_t = -math.inf
         #: the AUV's plan (set_plan) and the target's smoothed (t, s, cross) on it
         self.plan: Plan | None = None
         self._plan_msg: AuvPlan | None = None
@@ -182,6 +174,11 @@ class FollowGuidance:
         self._plan_leg_id = -1
         #: when (s) the AUV was last followed on its plan, and the plan's course there
         self._plan_course: tuple[float, float] | None = None
+
+    @property
+    def moving(self) -> bool:
+        """Whether the AUV is taken to be moving (:class:`.follow_motion.AuvMotion`)."""
+        return self.motion.moving
 
     def _lost_reason(self, track: AuvTrack | None, t: float) -> str:
         if track is None:
@@ -218,30 +215,7 @@ class FollowGuidance:
             path = StraightPath(tg)
         self.target = tg
         v = math.hypot(tg.vx, tg.vy)
-        # moving: the line's speed (re-seeded from the filter at every manoeuvre,
-        # a start included) above ``still_speed_mps`` and its uncertainty; still
-        # again only when the speed is surely small (a turn's uncertainty is
-        # not a stop)
-        cov = track.cov
-        sv = math.sqrt(max(0.5 * (cov[10] + cov[15]), 0.0)) if len(cov) == 16 else 0.0
-        v_line = math.hypot(track.vx_mps, track.vy_mps)
-        v_kf = math.hypot(track.kf_vx_mps, track.kf_vy_mps)
-        if on_plan is not None:
-            # on its plan the tracker's speed along it says it (a still AUV waiting
-            # at its plan's start is seen moving off along its first leg within
-            # a fix or two)
-            self.moving = v >= (0.5 if self.moving else 1.0) * cfg.still_speed_mps
-        elif not self.moving:
-            # the filter's speed alone once the boat has held above the AUV: it
-            # is then setting off (the first velocities of a track are noise)
-            self.moving = (v_line >= max(cfg.still_speed_mps, MOVING_SIGMAS * sv)
-                           or (self._hovered
-                               and v_kf >= max(cfg.still_speed_mps, KF_MOVING_MPS)))
-            if self.moving and self._hovered:
-                self._hovered = False
-                self._set_off_t = t
-        elif v_line + 2.0 * sv < cfg.still_speed_mps and v_kf < cfg.still_speed_mps:
-            self.moving = False
+        self.motion.update(track, t, v if on_plan is not None else None)
         # a slow AUV far off (at the start, its track's course mostly noise): go to
         # it, not "ahead" of it on that course to wait for it
         gap = math.hypot(tg.x - x, tg.y - y)  # the boat's distance to the target (m)
@@ -275,7 +249,8 @@ class FollowGuidance:
             # facing it sets off after it without a pivot (to face only: on a
             # course that may be noise, the boat does not wait ahead of it)
             face = (math.atan2(track.kf_vy_mps, track.kf_vx_mps)
-                    if v_kf >= FACE_COURSE_MPS else math.nan)
+                    if math.hypot(track.kf_vx_mps, track.kf_vy_mps) >= FACE_COURSE_MPS
+                    else math.nan)
             return self._above(tg, t, x, y, course,
                                "closing in on a slow AUV" if self.moving else "", face)
         self.hold = None
@@ -298,7 +273,7 @@ class FollowGuidance:
         # just after the AUV set off from under the boat, the boat's course over
         # ground is its drift and its first surge before it has pivoted: no lead
         psi = self._steer(math.atan2(ay - y, ax - x), t,
-                          lead_cog=t - self._set_off_t > SET_OFF_S)
+                          lead_cog=t - self.motion.set_off_t > SET_OFF_S)
         self._new_leg(psi)
         if isinstance(path, PlanPath):
             # be at the aim point when the AUV is: its straight distance from the
@@ -469,7 +444,7 @@ class FollowGuidance:
             lead, side = -(dx * cc + dy * sc), -dx * sc + dy * cc
             waiting = 0.0 <= lead <= ABOVE_AHEAD_M and abs(side) <= cfg.hold_radius_m
         if dist <= cfg.hold_radius_m or waiting:
-            self._hovered = True
+            self.motion.hovered_above()
             self._psi_ref = None
             return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
                                heading_rad=course if math.isfinite(course) else face)

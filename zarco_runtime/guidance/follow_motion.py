@@ -1,0 +1,75 @@
+"""Whether the followed AUV moves, and when it sets off from under the boat.
+
+The follow guidance holds above a still AUV and follows a moving one; this
+decides which, with hysteresis, from the AUV's track:
+
+* on its a-priori plan, the tracker's speed along the plan: moving above
+  ``still_speed_mps``, still again below half of it (a still AUV waiting at
+  its plan's start is seen moving off along its first leg within a fix or
+  two);
+* otherwise the RLS line's speed (re-seeded from the filter at every
+  manoeuvre, a start included) above ``still_speed_mps`` and
+  ``MOVING_SIGMAS`` of its uncertainty; or, once the boat has held above the
+  AUV (:meth:`AuvMotion.hovered_above`), the filter's speed alone above
+  ``KF_MOVING_MPS`` — the line, fitted over seconds of fixes, lags an AUV
+  setting off, and the first velocities of a new track are noise, so the
+  filter alone is trusted only for a start from under the boat.  Still again
+  only when both speeds are surely small (a turn's uncertainty is not a
+  stop).
+
+The moment an AUV the boat held above is taken to move is :attr:`set_off_t`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from zarco_core.auv_messages import AuvTrack
+
+#: the AUV moves when its line's speed exceeds this many standard deviations
+MOVING_SIGMAS = 3.0
+#: the filter alone takes the AUV to be moving above this speed (m/s), once the
+#: boat has held above it
+KF_MOVING_MPS = 0.5
+
+
+@dataclass(slots=True)
+class AuvMotion:
+    """Moving or still, with hysteresis (module docstring).  ``still_speed_mps``
+    (m/s): ``follow.still_speed_mps``."""
+
+    still_speed_mps: float
+    #: whether the AUV is taken to be moving
+    moving: bool = False
+    #: the boat has drifted within the hold radius above a still AUV since the
+    #: AUV was last taken to move
+    hovered: bool = False
+    #: runtime time (s) an AUV the boat held above was last taken to set off
+    set_off_t: float = -math.inf
+
+    def hovered_above(self) -> None:
+        """The boat holds above a still AUV (within the hold radius)."""
+        self.hovered = True
+
+    def update(self, track: AuvTrack, t: float, plan_speed_mps: float | None) -> bool:
+        """Moving at runtime time ``t`` (s)?  ``plan_speed_mps``: the AUV's
+        speed along its plan (m/s) while the tracker has it on the plan, else
+        None."""
+        still = self.still_speed_mps
+        if plan_speed_mps is not None:
+            self.moving = plan_speed_mps >= (0.5 if self.moving else 1.0) * still
+            return self.moving
+        cov = track.cov
+        sv = math.sqrt(max(0.5 * (cov[10] + cov[15]), 0.0)) if len(cov) == 16 else 0.0
+        v_line = math.hypot(track.vx_mps, track.vy_mps)
+        v_kf = math.hypot(track.kf_vx_mps, track.kf_vy_mps)
+        if not self.moving:
+            self.moving = (v_line >= max(still, MOVING_SIGMAS * sv)
+                           or (self.hovered and v_kf >= max(still, KF_MOVING_MPS)))
+            if self.moving and self.hovered:
+                self.hovered = False
+                self.set_off_t = t
+        elif v_line + 2.0 * sv < still and v_kf < still:
+            self.moving = False
+        return self.moving
