@@ -325,3 +325,17 @@ def test_an_auv_setting_off_from_under_the_boat_is_steered_at_whatever_the_boat_
     st = g.update(off, 102.0, -0.5, 0.0)
     assert g.moving and st.leg is not None
     assert st.leg.course_rad == pytest.approx(0.0, abs=math.radians(10.0))
+
+
+def test_a_track_lost_and_back_is_not_a_set_off() -> None:
+    """Held above a still AUV, the track is lost; the one that comes back
+    starts with a filter velocity of 0.6 m/s (noise of a new track): the AUV
+    is not taken to move on it, as it would be from a hover."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    still = _track(vx=0.03, sv=0.03)
+    assert g.update(still, 100.0, 0.2, 0.0).leg is None and not g.moving
+    g.update(None, 101.0, 0.2, 0.0)
+    back = _track(vx=0.03, sv=0.03, kf=(0.0, 0.0, 0.6, 0.0), t=102.0)
+    g.update(back, 102.0, 0.2, 0.0)
+    assert not g.moving
