@@ -203,9 +203,7 @@ class FollowGuidance:
         reason = self._lost_reason(track, t)
         if reason or track is None:
             self.target = None
-            # the track that comes back starts with velocities that are noise:
-            # not a set-off from under the boat
-            self.motion.hovered = False
+            self.motion.track_lost()
             return self._hold(x, y, reason or "no AUV track yet")
         tg = target_now(track, t, cfg.line_gate_m, math.radians(cfg.line_course_gate_deg))
         on_plan = self._on_plan(track, t)

@@ -52,6 +52,11 @@ class AuvMotion:
         """The boat holds above a still AUV (within the hold radius)."""
         self.hovered = True
 
+    def track_lost(self) -> None:
+        """The track is lost: the one that comes back starts with velocities
+        that are noise, not a set-off from under the boat."""
+        self.hovered = False
+
     def update(self, track: AuvTrack, t: float, plan_speed_mps: float | None) -> bool:
         """Moving at runtime time ``t`` (s)?  ``plan_speed_mps``: the AUV's
         speed along its plan (m/s) while the tracker has it on the plan, else
