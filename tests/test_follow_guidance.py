@@ -339,3 +339,34 @@ def test_a_track_lost_and_back_is_not_a_set_off() -> None:
     back = _track(vx=0.03, sv=0.03, kf=(0.0, 0.0, 0.6, 0.0), t=102.0)
     g.update(back, 102.0, 0.2, 0.0)
     assert not g.moving
+
+
+def test_a_reversal_on_its_plan_is_turned_the_way_the_auv_turns() -> None:
+    """At a corner of its plan where the AUV turns back (177° to port), the
+    tracker's progress along the plan steps past the corner and the aim point
+    lands on the new leg just to starboard of straight behind a boat a little
+    to port of the path: the leg turns to port with the AUV, not the shorter
+    way round to starboard, which took the boat away from the AUV's turn
+    circle (a campaign mission: its peak distance 8.8 m, 7.1 m turning with it)."""
+    g = FollowGuidance(FollowSettings())
+    plan = ((-80.6, -14.0), (-184.6, -33.8), (-80.7, -7.9))
+    g.set_plan(AuvPlan(0.0, plan, "mission"))
+    c_in = math.atan2(plan[1][1] - plan[0][1], plan[1][0] - plan[0][0])
+
+    def on_plan(t0: float, leg: int, s: float, u: float, cross: float) -> AuvTrack:
+        return dataclasses.replace(_track(t=t0), plan_leg=leg, plan_s_m=s, plan_speed_mps=u,
+                                   plan_cross_m=cross, plan_turn_radius_m=6.0)
+
+    before = on_plan(161.9, 0, 100.84, 1.0, -0.34)  # 5 m before the corner
+    after = on_plan(163.0, 1, 107.71, 1.8, 0.25)  # 1.8 m past it
+    offs = []
+    for k in range(70):
+        t = 159.0 + 0.1 * k
+        d = t - 164.0  # the boat runs down the first leg at 1 m/s
+        st = g.update(before if t < 164.05 else after, t, -181.7 + d * math.cos(c_in),
+                      -32.86 + d * math.sin(c_in))
+        assert st.leg is not None
+        offs.append(math.degrees(math.remainder(st.leg.course_rad - c_in, math.tau)))
+    assert max(abs(o) for o in offs[:50]) < 3.0  # down the leg before the corner
+    # a second after the corner the leg has turned to port of the first leg's course
+    assert offs[-1] < -10.0

@@ -88,6 +88,11 @@ COG_WINDOW_S = 0.5
 COG_MIN_MPS = 0.25
 #: the virtual leg leads the boat's course over ground by at most this (rad)
 MAX_LEAD_RAD = math.radians(90.0)
+#: a change of the leg's course larger than this (rad) is a reversal: it turns
+#: the way the AUV's path turns (with a plan), not the shorter way
+REVERSAL_RAD = math.radians(120.0)
+#: a plan's corner turning this much or more (rad) may be turned either way round
+AMBIGUOUS_TURN_RAD = math.radians(178.0)
 #: a still AUV further than this many position σ (and 1 m) is closed in on
 #: before its track has settled
 APPROACH_SIGMAS = 4.0
@@ -274,7 +279,8 @@ class FollowGuidance:
         # just after the AUV set off from under the boat, the boat's course over
         # ground is its drift and its first surge before it has pivoted: no lead
         psi = self._steer(math.atan2(ay - y, ax - x), t,
-                          lead_cog=t - self.motion.set_off_t > SET_OFF_S)
+                          lead_cog=t - self.motion.set_off_t > SET_OFF_S,
+                          turn_sign=_path_turn_sign(path, ahead))
         self._new_leg(psi)
         if isinstance(path, PlanPath):
             # be at the aim point when the AUV is: its straight distance from the
@@ -476,7 +482,8 @@ class FollowGuidance:
                      else None)
         self._last_pos = (t, x, y)
 
-    def _steer(self, psi: float, t: float, lead_cog: bool = True) -> float:
+    def _steer(self, psi: float, t: float, lead_cog: bool = True,
+               turn_sign: float = 0.0) -> float:
         """The virtual leg's course towards ``psi`` (rad): turning no faster than
         ``max_turn_rate_dps``, and, with ``lead_cog``, never more than
         ``MAX_LEAD_RAD`` off the boat's course over ground while it moves (a
@@ -485,11 +492,19 @@ class FollowGuidance:
         far off, :meth:`_above`) the leg points at it whatever the boat's
         course over ground: that course is then a drift (current, backing
         off, a pivot), and holding the leg within 90° of it sent the boat
-        round the long way (a full turn before it set off)."""
+        round the long way (a full turn before it set off).  ``turn_sign``
+        (+1 starboard, −1 port, 0 unknown): the way the AUV's plan turns back
+        here; a change of more than ``REVERSAL_RAD`` the other way is turned
+        this way round (a few metres of offset at a reversal make the other
+        way the shorter, and take the boat away from the AUV's turn)."""
         ref = self._psi_ref
         if ref is not None and self._t_ref is not None and t > self._t_ref:
             step = math.radians(self.cfg.max_turn_rate_dps) * (t - self._t_ref)
             dpsi = math.remainder(psi - ref, math.tau)
+            if turn_sign * dpsi < 0.0 and abs(dpsi) > REVERSAL_RAD:
+                # a reversal: turn the way the AUV's path turns, not the way a
+                # few metres of offset make the shorter
+                dpsi += math.copysign(math.tau, turn_sign)
             psi = ref + max(-step, min(step, dpsi))
         if lead_cog and self._cog is not None:
             off = math.remainder(psi - self._cog, math.tau)
@@ -517,3 +532,20 @@ class FollowGuidance:
         c, s = math.cos(psi), math.sin(psi)
         leg = Leg(-1, x - c, y - s, x + dist * c, y + dist * s, self.cfg.hold_speed_mps)
         return FollowState(self.mode, leg, 0.0, 0.0, self.cfg.hold_speed_mps, reason)
+
+
+
+def _path_turn_sign(path: StraightPath | PlanPath, ahead: float) -> float:
+    """+1 (to starboard) or −1 (to port) when the corners of the AUV's plan
+    within ``ahead`` metres of the target, before or after it, turn it back
+    by more than ``REVERSAL_RAD`` together (a target just past a sharp corner
+    has the boat still before it; two 90° corners of a lawnmower make one
+    U-turn); 0 without a plan, without such a turn, or with a corner of
+    ``AMBIGUOUS_TURN_RAD`` or more (its way round is the AUV's choice)."""
+    if not isinstance(path, PlanPath) or ahead <= 0.0:
+        return 0.0
+    turns = path.turns(ahead)
+    if any(abs(w) >= AMBIGUOUS_TURN_RAD for w in turns):
+        return 0.0
+    total = sum(turns)
+    return math.copysign(1.0, total) if abs(total) > REVERSAL_RAD else 0.0

@@ -151,6 +151,13 @@ class PlanPath:
     def course_at(self, a: float) -> float:
         return self.plan.point_at(self._at(a), 0.0, self.radius)[2]
 
+    def turns(self, a: float) -> tuple[float, ...]:
+        """The turns (rad, + to starboard) of the plan's corners within ``a``
+        metres of the target along the path, before or after it, in order."""
+        k0 = self.plan.leg_at(self._at(-a)).index
+        k1 = self.plan.leg_at(self._at(a)).index
+        return tuple(self.plan.turn_rad(k) for k in range(k0, k1))
+
     def line(self, a: float) -> tuple[float, float, float, int]:
         """The (offset) plan leg ``a`` metres from the target: the point of it
         level with the target, its course, its index."""
