@@ -534,7 +534,6 @@ class FollowGuidance:
         return FollowState(self.mode, leg, 0.0, 0.0, self.cfg.hold_speed_mps, reason)
 
 
-
 def _path_turn_sign(path: StraightPath | PlanPath, ahead: float) -> float:
     """+1 (to starboard) or −1 (to port) when the corners of the AUV's plan
     within ``ahead`` metres of the target, before or after it, turn it back
