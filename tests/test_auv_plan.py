@@ -288,3 +288,29 @@ def test_a_hovering_auv_is_on_its_plan_only_at_its_start_and_a_cleared_plan_stop
     m.update(80.0, 30.0, 0.0, 1.0, 0.0, 1.0)
     assert m.leg == -1
     assert m.events[-1] == "AUV plan cleared; tracking without it"
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_guessed_plan_is_left_as_soon_as_the_auv_flies_straight_past_a_corner(
+        seed: int) -> None:
+    """A tentative plan (inferred, not given): the AUV going straight on past
+    a corner has left it within 5 s of its speed past the corner (plus the
+    filter's samples), long before the corner's zone would say so; flying
+    the plan, it never leaves it."""
+    rng = np.random.default_rng(500 + seed)
+    pts, v, rate = lawnmower(rng)
+    m = PlanMatcher(PlanParams())
+    m.set_plan([tuple(p) for p in pts], "tracker", tentative=True)
+    fly(m, auv_on(pts, v, rate), duration(pts, v) - 2.0, rng)
+    assert m.left == 0 and m.joined == 1, m.events
+    k = int(rng.integers(2, len(pts) - 2))
+    a, b = np.array(pts[k - 1]), np.array(pts[k])
+    u = (b - a) / np.linalg.norm(b - a)
+    route = [*pts[:k], (b + 60.0 * u).tolist()]  # straight on past corner k
+    m = PlanMatcher(PlanParams())
+    m.set_plan([tuple(p) for p in pts], "tracker", tentative=True)
+    hist = fly(m, auv_on(route, v, rate), duration(route, v) - 2.0, rng)
+    t_corner = duration(route[: k + 1], v)
+    t_left = next(t for t, leg in hist if t > t_corner - 5.0 and leg == -1)
+    assert t_left <= t_corner + max(4.0 / v, 5.0) + 5.0, (t_left, t_corner)
+    assert any("straight on past the end of leg" in e for e in m.events), m.events

@@ -15,6 +15,7 @@ from zarco_runtime.guidance.follow import (
     FollowSettings,
     target_now,
 )
+from zarco_runtime.tracking.plan import Plan
 
 VALID = int(TrackFlags.INITIALISED | TrackFlags.LINE_VALID)
 
@@ -354,7 +355,10 @@ def test_a_reversal_on_its_plan_is_turned_the_way_the_auv_turns() -> None:
     c_in = math.atan2(plan[1][1] - plan[0][1], plan[1][0] - plan[0][0])
 
     def on_plan(t0: float, leg: int, s: float, u: float, cross: float) -> AuvTrack:
-        return dataclasses.replace(_track(t=t0), plan_leg=leg, plan_s_m=s, plan_speed_mps=u,
+        # the filter where the plan's progress puts the AUV, on its course
+        x, y, c = Plan(plan).point_at(s, cross, 6.0)
+        tr = _track(x=x, y=y, vx=u * math.cos(c), vy=u * math.sin(c), t=t0)
+        return dataclasses.replace(tr, plan_leg=leg, plan_s_m=s, plan_speed_mps=u,
                                    plan_cross_m=cross, plan_turn_radius_m=6.0)
 
     before = on_plan(161.9, 0, 100.84, 1.0, -0.34)  # 5 m before the corner
@@ -370,3 +374,22 @@ def test_a_reversal_on_its_plan_is_turned_the_way_the_auv_turns() -> None:
     assert max(abs(o) for o in offs[:50]) < 3.0  # down the leg before the corner
     # a second after the corner the leg has turned to port of the first leg's course
     assert offs[-1] < -10.0
+
+
+def test_a_plan_target_run_away_from_the_filter_is_not_followed() -> None:
+    """The plan's progress is carried forward on its own: once it is more
+    than 8 m (plus 3σ) from where the filter has the AUV — an AUV that left
+    its plan, not yet noticed — the boat follows the filter's target."""
+    plan = ((0.0, 0.0), (100.0, 0.0), (100.0, 20.0))
+    g = FollowGuidance(FollowSettings())
+    g.set_plan(AuvPlan(0.0, plan, "mission"))
+    on = dataclasses.replace(_track(x=95.0, vx=1.0), plan_leg=0, plan_s_m=95.0,
+                             plan_speed_mps=1.0, plan_cross_m=0.0, plan_turn_radius_m=6.0)
+    _moving(g, on, (94.0, 0.0))
+    assert g.target is not None and g.target.source == "plan"
+    # the filter has the AUV 15 m off, going on north-east; the plan's progress
+    # still at the corner
+    off = dataclasses.replace(on, kf_x_m=100.0, kf_y_m=-15.0, kf_vx_mps=0.7, kf_vy_mps=-0.7,
+                              t=101.0, t0=101.0)
+    g.update(off, 101.0, 95.0, 0.0)
+    assert g.target is not None and g.target.source != "plan"

@@ -93,6 +93,9 @@ MAX_LEAD_RAD = math.radians(90.0)
 REVERSAL_RAD = math.radians(120.0)
 #: a plan's corner turning this much or more (rad) may be turned either way round
 AMBIGUOUS_TURN_RAD = math.radians(178.0)
+#: the plan's target is followed only within this (m, plus 3σ of the filter's
+#: position) of the filter's position carried to now
+PLAN_GATE_M = 8.0
 #: a still AUV further than this many position σ (and 1 m) is closed in on
 #: before its track has settled
 APPROACH_SIGMAS = 4.0
@@ -380,6 +383,15 @@ class FollowGuidance:
             self._sm_plan = None
             return None
         tg, path = got
+        # the plan's progress is carried forward on its own: where it has run
+        # away from the filter (an AUV that left the plan, not yet noticed),
+        # the filter is followed
+        dt = t - track.t0
+        sigma = track.kf_pos_sigma_m if math.isfinite(track.kf_pos_sigma_m) else 0.0
+        if math.hypot(tg.x - track.kf_x_m - track.kf_vx_mps * dt,
+                      tg.y - track.kf_y_m - track.kf_vy_mps * dt) > PLAN_GATE_M + 3.0 * sigma:
+            self._sm_plan = None
+            return None
         zone = max(PLAN_CORNER_ZONE_M, 1.2 * path.radius)
         leg = plan.leg_at(path.s)
         since = path.s - leg.s0_m  # since the last corner, or the plan's start

@@ -57,6 +57,14 @@ from zarco_runtime.tracking.plan_progress import AlongPlan
 __all__ = ["MAX_POINTS", "AlongPlan", "Plan", "PlanError", "PlanLeg", "PlanMatcher",
            "PlanParams", "check_points", "geodetic_plan"]
 
+#: on a tentative plan, an AUV further past a corner than this many seconds of
+#: its speed (and this many metres), still within this of the leg's course
+#: (deg), has not turned there
+TENTATIVE_PAST_S = 5.0
+TENTATIVE_PAST_M = 4.0
+TENTATIVE_STRAIGHT_DEG = 15.0
+
+
 @dataclass(slots=True)
 class PlanParams:
     """``[tracker.plan]``: matching the AUV to its a-priori plan."""
@@ -84,6 +92,9 @@ class PlanParams:
     turn_radius_m: float = spec(6.0, "m", "the AUV's turning radius until its first corners "
                                 "show it (the plan's corners are rounded with it)",
                                 min=0.0, max=18.0)
+    infer: bool = spec(True, "", "without a plan given, infer a lawnmower survey's from the "
+                       "legs the AUV flies (a long leg, the spacing, the start of the leg "
+                       "back) and match the AUV to it as to a given one")
 
 
 @dataclass(slots=True)
@@ -118,6 +129,8 @@ class PlanMatcher:
     _vel_sigma: float = 0.0
     #: the AUV's progress along the plan while it is on it
     along: AlongPlan | None = None
+    #: the plan is a guess (:meth:`set_plan`)
+    tentative: bool = False
 
     @property
     def state(self) -> str:
@@ -127,9 +140,13 @@ class PlanMatcher:
         return "on" if self.leg >= 0 else "search"
 
     def set_plan(self, points: tuple[tuple[float, float], ...] | list[tuple[float, float]],
-                 source: str = "") -> None:
+                 source: str = "", tentative: bool = False) -> None:
         """Take a new plan (NED points, m; empty clears it) and match from scratch.
-        Points that are not a plan clear it, with an event saying why."""
+        Points that are not a plan clear it, with an event saying why.
+        ``tentative``: a plan guessed (:mod:`.plan_infer`), not given — an AUV
+        going straight on past one of its corners has left it at once
+        (:meth:`_straight_on`), not only past the corner's zone."""
+        self.tentative = tentative
         had = self.plan is not None
         self.plan = None
         self.leg = -1
@@ -339,6 +356,10 @@ class PlanMatcher:
             reason = f"{abs(f.cross):.0f} m {'starboard' if f.cross > 0 else 'port'} of leg {k + 1}"
         elif k + 1 < len(legs) and f.along > leg.length_m + zone:
             reason = f"past the end of leg {k + 1} without turning"
+        elif self.tentative and self._straight_on(k, x, y, vx, vy):
+            # a guessed corner the AUV flew straight past: no such corner
+            self._leave(f"straight on past the end of leg {max(k, 1)}")
+            return
         elif not f.course_ok and not (near_end or near_start):
             course = math.degrees(math.atan2(vy, vx)) % 360.0
             reason = (f"course {course:.0f}° where leg {k + 1} runs "
@@ -351,6 +372,26 @@ class PlanMatcher:
         if t - self._bad_since < p.leave_after_s:
             return
         self._leave(reason)
+
+    def _straight_on(self, k: int, x: float, y: float, vx: float, vy: float) -> bool:
+        """On leg ``k`` or just past it onto ``k`` + 1: the AUV further along
+        one of the two than its end plus ``TENTATIVE_PAST_S`` of its speed (and
+        ``TENTATIVE_PAST_M``) and still on that leg's course (within
+        ``TENTATIVE_STRAIGHT_DEG``): a guessed corner is where the AUV began
+        its turns, and by then it would have turned more than that."""
+        assert self.plan is not None
+        legs = self.plan.legs
+        c = math.atan2(vy, vx)
+        for j in (k - 1, k):
+            if j < 0 or j + 1 >= len(legs):
+                continue
+            leg = legs[j]
+            along, _ = leg.project(x, y)
+            past = max(TENTATIVE_PAST_M, TENTATIVE_PAST_S * math.hypot(vx, vy))
+            if along > leg.length_m + past and abs(math.remainder(
+                    c - leg.course_rad, math.tau)) < math.radians(TENTATIVE_STRAIGHT_DEG):
+                return True
+        return False
 
     def _leave(self, reason: str) -> None:
         self.leg = -1

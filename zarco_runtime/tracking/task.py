@@ -5,7 +5,9 @@ bus listener: a median of ~15 µs per event) and publishes the fixes and track
 updates it produced; a 1 Hz task ages the track so that a silent feed makes
 it stale and then lost.  The AUV's plan (:class:`AuvPlan`, from the
 supervisor) goes to the tracker's plan matcher, whose news (the AUV on its
-plan, off it, back on it) goes out as ``mission`` events.
+plan, off it, back on it) goes out as ``mission`` events; a lawnmower the
+tracker inferred without a plan given goes out as an :class:`AuvPlan` of
+source ``tracker`` (:mod:`.plan_infer`).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock
 from zarco_core.messages import Event
 from zarco_runtime.tracking.params import TrackerParams
-from zarco_runtime.tracking.tracker import AuvTracker
+from zarco_runtime.tracking.tracker import INFERRED_SOURCE, AuvTracker
 
 #: how often the track is aged without events (s)
 TICK_S = 1.0
@@ -40,12 +42,23 @@ class Tracking:
         publish = self.bus.publish
         for m in self.tracker.process(ev):
             publish(m)
+        self._inferred(ev.t)
         if self.tracker.plan.events:
             self._plan_events(ev.t)
 
     def _on_plan(self, plan: AuvPlan) -> None:
-        self.tracker.plan.set_plan(plan.points, plan.source)
+        # an inferred plan serving again is published with the next event, not
+        # from inside this delivery (the plan being delivered would reach the
+        # listeners after it, and stand as the latest)
+        self.tracker.set_plan(plan.points, plan.source)
         self._plan_events(plan.t)
+
+    def _inferred(self, t: float) -> None:
+        """Publish the plans the tracker inferred (the guidance follows the AUV
+        along them as along a plan given)."""
+        got, self.tracker.inferred = self.tracker.inferred, []
+        for points in got:
+            self.bus.publish(AuvPlan(t, points, INFERRED_SOURCE))
 
     def _plan_events(self, t: float) -> None:
         events = self.tracker.plan.events

@@ -97,6 +97,7 @@ from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.maneuver import ManeuverDetector
 from zarco_runtime.tracking.params import Network, TrackerParams
 from zarco_runtime.tracking.plan import PlanMatcher
+from zarco_runtime.tracking.plan_infer import LawnmowerInference
 from zarco_runtime.tracking.rls import LineRls
 from zarco_runtime.tracking.timemap import ClockCheck, TimeMap
 
@@ -117,6 +118,9 @@ WINDOW_OFF_DROPS = 6
 PLAN_STRAIGHT_MARGIN_M = 3.0
 
 Out = list[AuvFix | AuvTrack]
+
+#: the source of a plan the tracker inferred (:mod:`.plan_infer`)
+INFERRED_SOURCE = "tracker"
 
 
 class AuvTracker:
@@ -185,10 +189,31 @@ class AuvTracker:
         self._buoy_fault = False
         #: the AUV's a-priori plan: which leg it is on, its progress (:mod:`.plan`)
         self.plan = PlanMatcher(params.plan)
+        #: without a plan given, the lawnmower its legs make (:mod:`.plan_infer`);
+        #: the plans inferred and not yet published (points; empty: cleared)
+        self.infer = LawnmowerInference()
+        self.inferred: list[tuple[tuple[float, float], ...]] = []
+        self._given_plan = False
         #: the plan leg whose straight part the turn rate was last checked on
         self._straight_leg = -1
 
     # ------------------------------------------------------------ public API
+
+    def set_plan(self, points: tuple[tuple[float, float], ...] | list[tuple[float, float]],
+                 source: str = "") -> None:
+        """The AUV's plan (NED points, m; empty: none) from ``source``.  A plan
+        given stops the inference; none given lets it run, and a lawnmower
+        already inferred serves again (queued in :attr:`inferred` to be
+        published).  The tracker's own inferred plans coming back are ignored."""
+        if source == INFERRED_SOURCE:
+            return
+        self._given_plan = bool(points)
+        got = self.infer.plan
+        if not points and got and self.p.plan.infer:
+            self.plan.set_plan(got, INFERRED_SOURCE, tentative=True)
+            self.inferred.append(got)
+            return
+        self.plan.set_plan(points, source)
 
     def on_event(self, ev: Any) -> AuvTrack | None:
         """Process one acoustic event; the AuvTrack it produced, if any."""
@@ -645,6 +670,11 @@ class AuvTracker:
                 man.turn_utc = t_em
         self.plan.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma(),
                          math.sqrt(max(0.5 * (kf.P[2][2] + kf.P[3][3]), 0.0)))
+        if p.plan.infer and not self._given_plan:
+            got = self.infer.update(t_em, kf.x[0], kf.x[1], kf.x[2], kf.x[3])
+            if got is not None:
+                self.plan.set_plan(got, INFERRED_SOURCE, tentative=True)
+                self.inferred.append(got)
         self._plan_straight()
         track = self._build(t)
         self.last_track = track

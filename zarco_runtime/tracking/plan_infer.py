@@ -1,0 +1,360 @@
+"""The AUV's plan inferred from the legs it flies: a lawnmower.
+
+Without an a-priori plan, a survey AUV still flies one: long legs of one
+length L, back and forth, each pair joined by a short leg of one spacing W,
+every corner 90° and the short legs all the same way (the sweep).  Once the
+filter has shown a long leg, a short leg and the start of the next long leg
+back, the rest of the survey is predictable: :class:`LawnmowerInference`
+returns the plan those legs make — the two corners seen, then the corners
+ahead — and the tracker matches the AUV to it like a plan it was given
+(:mod:`.plan`): the boat turns with the AUV at the predicted corners, and an
+AUV that does not turn there (the survey ended, an adaptive mission) leaves
+the plan as from any other.
+
+The legs come from the filter's state after every accepted update (local
+NED, m and m/s; filter time, s): a stretch at least ``LEG_MIN_S`` long whose
+course stays within ``BREAK_DEG`` of the stretch's own is a leg, fitted by
+least squares (position against time); it ends when the course is off it on
+``BREAK_UPDATES`` updates in a row, and the next starts once the course has
+settled within ``SETTLE_DEG`` over ``SETTLE_UPDATES`` updates.  A corner is
+where two legs' lines cross.  L is the last long leg's length between its
+corners — or from where the AUV set off (the filter's position when it last
+flew slower than ``MIN_SPEED_MPS``) to its first corner — and, with two
+long legs seen, the two must agree (within ``LENGTH_TOL``); W is the short
+leg's length between its corners.
+
+A new inference is returned only when it moves the corners ahead by more
+than ``REPUBLISH_M`` (the matcher starts over on a new plan), and only at the
+start of a long leg (none of its corners close); a pattern broken (a turn
+that is not the lawnmower's next) clears it.
+
+Pure and deterministic: no I/O, no clocks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+#: below this speed (m/s) the AUV hovers: no leg, and the set-off point is kept
+MIN_SPEED_MPS = 0.3
+#: a leg lasts at least this long (s)
+LEG_MIN_S = 6.0
+#: a leg ends when the course is this far (deg) off its own on this many updates in a row
+BREAK_DEG = 30.0
+BREAK_UPDATES = 2
+#: the trailing positions of a leg whose course is this far (deg) off its own are
+#: the turn's beginning, not the leg
+END_DEG = 8.0
+#: a leg starts once the course stayed within this (deg) over this many updates
+SETTLE_DEG = 12.0
+SETTLE_UPDATES = 4
+#: a lawnmower's long legs last at least this (s: 40 m at 1.4 m/s, less the
+#: turns' ends)
+LONG_LEG_S = 20.0
+#: a lawnmower's short legs are square to its long ones within this (deg)
+SQUARE_TOL_DEG = 25.0
+#: a lawnmower's long legs are antiparallel within this (deg)
+ANTI_TOL_DEG = 10.0
+#: two long legs agree within this fraction of their length (plus 5 m)
+LENGTH_TOL = 0.15
+#: spacing and leg lengths (m) a lawnmower has
+MIN_SPACING_M = 4.0
+MAX_LEG_M = 2000.0
+#: a leg across the inferred survey's long legs longer than this many spacings
+#: plus this (m) ends it
+OFF_PLAN_SPACINGS = 1.5
+OFF_PLAN_M = 10.0
+#: the lawnmower is looked for on a new leg's positions of the last
+#: ``INFER_AFTER_S`` from when it has lasted that long to ``INFER_WINDOW_S`` (s)
+INFER_AFTER_S = 10.0
+INFER_WINDOW_S = 25.0
+#: U-turns predicted ahead
+UTURNS_AHEAD = 4
+#: a new inference moving the next corners by less than this (m) is not returned
+REPUBLISH_M = 3.0
+#: the AUV set off at most this long (s) before its first leg started: that
+#: leg's length runs from the set-off point
+SET_OFF_S = 30.0
+
+Point = tuple[float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Leg:
+    """A straight leg: its time span (s), a point on its line (m, NED: the
+    mean of its positions), its unit direction, its last position on the
+    line, and the set-off point when the AUV set off from hovering just before
+    it (else None)."""
+
+    t0: float
+    t1: float
+    x: float
+    y: float
+    ux: float
+    uy: float
+    #: the last position, on the line (m)
+    end: Point
+    start: Point | None = None
+    #: from the first position to the last, along the line (m)
+    length: float = 0.0
+
+    @property
+    def course(self) -> float:
+        return math.atan2(self.uy, self.ux)
+
+
+def _fit(points: list[tuple[float, float, float]]) -> tuple[float, float, float, float] | None:
+    """(mean north, mean east, unit direction) of positions (t, x, y) fitted
+    against time; None without motion."""
+    n = len(points)
+    tb = sum(p[0] for p in points) / n
+    xb = sum(p[1] for p in points) / n
+    yb = sum(p[2] for p in points) / n
+    stt = sum((p[0] - tb) ** 2 for p in points)
+    if stt <= 0.0:
+        return None
+    vx = sum((p[0] - tb) * (p[1] - xb) for p in points) / stt
+    vy = sum((p[0] - tb) * (p[2] - yb) for p in points) / stt
+    v = math.hypot(vx, vy)
+    if v <= 0.0:
+        return None
+    return xb, yb, vx / v, vy / v
+
+
+def _cross(a: Leg, b: Leg) -> Point | None:
+    """Where the lines of legs ``a`` and ``b`` cross; None when nearly parallel."""
+    det = a.ux * b.uy - a.uy * b.ux
+    if abs(det) < 0.5:
+        return None
+    dx, dy = b.x - a.x, b.y - a.y
+    s = (dx * b.uy - dy * b.ux) / det
+    return a.x + s * a.ux, a.y + s * a.uy
+
+
+def _turn(a: float, b: float) -> float:
+    return math.remainder(b - a, math.tau)
+
+
+class LawnmowerInference:
+    """The legs the AUV flies and the lawnmower they make (module docstring)."""
+
+    def __init__(self) -> None:
+        self.legs: list[Leg] = []
+        #: the plan last returned (its points), or None
+        self.plan: tuple[Point, ...] | None = None
+        self._cur: list[tuple[float, float, float]] = []
+        self._cur_c: list[float] = []
+        self._cur_course = math.nan
+        self._off = 0
+        self._recent: list[tuple[float, float, float, float]] = []
+        self._rest: tuple[float, float, float] | None = None
+        self._leg_start: Point | None = None
+
+    def reset(self) -> None:
+        self.__init__()  # type: ignore[misc]
+
+    def update(self, t: float, x: float, y: float, vx: float, vy: float
+               ) -> tuple[Point, ...] | None:
+        """The filter's state after an accepted update; a new plan (its points:
+        empty to clear the one returned before) or None for no change."""
+        if not all(math.isfinite(v) for v in (t, x, y, vx, vy)):
+            return None
+        if math.hypot(vx, vy) < MIN_SPEED_MPS:
+            self._rest = (t, x, y)
+            self._cur, self._recent, self._off = [], [], 0
+            return None
+        c = math.atan2(vy, vx)
+        if self._cur:
+            self._cur.append((t, x, y))
+            self._cur_c.append(c)
+            self._off = self._off + 1 if abs(_turn(self._cur_course, c)) > math.radians(
+                BREAK_DEG) else 0
+            if self._off >= BREAK_UPDATES:
+                leg = self._end_leg(self._cur[:-BREAK_UPDATES], self._cur_c[:-BREAK_UPDATES])
+                self._cur, self._cur_c, self._off = [], [], 0
+                self._recent = []
+                plan = self.plan
+                if leg is not None and plan is not None and _off_axis(
+                        leg.course, math.atan2(plan[2][1] - plan[1][1], plan[2][0] - plan[1][0])) \
+                        and leg.length > OFF_PLAN_SPACINGS * math.dist(plan[0], plan[1]) \
+                        + OFF_PLAN_M:
+                    # a long leg across the survey's lines: the survey is over
+                    self.plan = None
+                    return ()
+                return None
+            if len(self._cur) >= 3:
+                f = _fit(self._cur)
+                if f is not None:
+                    self._cur_course = math.atan2(f[3], f[2])
+            if INFER_AFTER_S <= t - self._cur[0][0] <= INFER_WINDOW_S:
+                # a leg's first seconds may still be the turn's end (an AUV
+                # closing onto its line): look on its latest positions while it
+                # is young, once it has lasted
+                return self._infer([p for p in self._cur if p[0] >= t - INFER_AFTER_S])
+            return None
+        self._recent.append((t, x, y, c))
+        del self._recent[:-SETTLE_UPDATES]
+        if len(self._recent) < SETTLE_UPDATES or any(
+                abs(_turn(c, r[3])) > math.radians(SETTLE_DEG) for r in self._recent):
+            return None
+        # a leg starts
+        self._cur = [(r[0], r[1], r[2]) for r in self._recent]
+        self._cur_c = [r[3] for r in self._recent]
+        self._cur_course = c
+        rest = self._rest
+        self._leg_start = (rest[1], rest[2]) if rest is not None and \
+            self._recent[0][0] - rest[0] <= SET_OFF_S else None
+        self._rest = None
+        self._recent = []
+        return None
+
+    def _end_leg(self, points: list[tuple[float, float, float]], courses: list[float]
+                 ) -> Leg | None:
+        """A leg ended: fitted on its ``points`` (t, north, east), less the
+        trailing ones whose course (``courses``, rad) already turned more than
+        ``END_DEG`` off the leg's (the turn's first seconds), and the leading
+        ones as far off (the AUV still swinging onto the line)."""
+        if len(points) < 3 or points[-1][0] - points[0][0] < LEG_MIN_S:
+            return None
+        f = _fit(points)
+        if f is None:
+            return None
+        n = len(points)
+        lc = f_course(f)
+        while n > 3 and abs(_turn(lc, courses[n - 1])) > math.radians(END_DEG):
+            n -= 1
+        i = 0
+        while n - i > 3 and abs(_turn(lc, courses[i])) > math.radians(END_DEG):
+            i += 1  # still swinging onto it from the turn before
+        f = _fit(points[i:n]) or f
+        xb, yb, ux, uy = f
+        along = (points[n - 1][1] - xb) * ux + (points[n - 1][2] - yb) * uy
+        first = (points[i][1] - xb) * ux + (points[i][2] - yb) * uy
+        leg = Leg(points[i][0], points[n - 1][0], xb, yb, ux, uy,
+                  (xb + along * ux, yb + along * uy), self._leg_start, along - first)
+        self.legs.append(leg)
+        del self.legs[:-8]
+        return leg
+
+    def _infer(self, start: list[tuple[float, float, float]]) -> tuple[Point, ...] | None:
+        """At the start of a leg (its first positions ``start``): the lawnmower
+        the legs before make with it, if they make one (module docstring)."""
+        got = self._pattern(start)
+        if got is None:
+            return None
+        if self.plan is not None and len(self.plan) >= 3:
+            # the same survey: a new plan only when its next corners moved
+            old = self.plan
+            near = [min(math.hypot(p[0] - q[0], p[1] - q[1]) for q in old) for p in got[1:4]]
+            if max(near) <= REPUBLISH_M:
+                return None
+        self.plan = got
+        return got
+
+    def _pattern(self, start: list[tuple[float, float, float]]) -> tuple[Point, ...] | None:
+        """The lawnmower's points, the new leg starting with positions
+        ``start``: it runs back along the last long leg ``a`` (only short legs
+        square to it, or none, in between), ``a`` ended at the corner c1 and
+        the new leg lies the spacing W off it (c2 = c1 + W across); the long
+        legs' length from ``a``'s (:meth:`_long_length`)."""
+        f = _fit(start)
+        if f is None:
+            return None
+        bc = f_course(f)
+        k = len(self.legs) - 1
+        while k >= 0 and _off_axis(self.legs[k].course, bc) and not _long(self.legs[k]):
+            k -= 1  # the spacing: a short leg, or the arcs of a U-turn
+        if k < 0 or not _back(self.legs[k].course, bc) or not _long(self.legs[k]):
+            return None
+        a = self.legs[k]
+        nx, ny = -a.uy, a.ux
+        w = (f[0] - a.x) * nx + (f[1] - a.y) * ny
+        sg = 1.0 if w > 0.0 else -1.0
+        sx, sy, w = sg * nx, sg * ny, abs(w)
+        # the spacing between two long legs flown whole, when the AUV swept
+        # the same way: the new leg's first positions are still swinging out
+        j = k - 1
+        while j >= 0 and _off_axis(self.legs[j].course, a.course) and not _long(self.legs[j]):
+            j -= 1
+        if j >= 0:
+            p = self.legs[j]
+            w_prev = (a.x - p.x) * sx + (a.y - p.y) * sy
+            if w_prev > 0.0 and abs(w_prev - w) <= LENGTH_TOL * w + 5.0:
+                w = w_prev
+        # a short leg square to the long ones seen between: a lawnmower's spacing;
+        # without one (a reversal) a random route looks the same once, so two
+        # long legs of one length must have been seen
+        square = any(abs(abs(_turn(a.course, leg.course)) - math.pi / 2.0)
+                     <= math.radians(SQUARE_TOL_DEG) for leg in self.legs[k + 1:])
+        length = self._long_length(k, 1 if square else 2)
+        if length is None or not MIN_SPACING_M <= w <= length:
+            return None
+        c1 = a.end
+        c2 = (c1[0] + w * sx, c1[1] + w * sy)
+        pts: list[Point] = [c1, c2]
+        px, py = c2
+        dx, dy = -a.ux, -a.uy
+        for _ in range(UTURNS_AHEAD):
+            px, py = px + length * dx, py + length * dy
+            pts.append((px, py))
+            px, py = px + w * sx, py + w * sy
+            pts.append((px, py))
+            dx, dy = -dx, -dy
+        pts.append((px + length * dx, py + length * dy))
+        return tuple(pts)
+
+    def _long_length(self, k: int, need: int) -> float | None:
+        """The long legs' length (m): leg ``k``'s from where it began — level
+        with the end of the long leg before it (the corners at one end of a
+        lawnmower are in line across the legs), or the set-off point — to its
+        end; the long leg before it too when that one's beginning is known,
+        and the two must agree within ``LENGTH_TOL`` (+ 5 m).  None unless
+        ``need`` of them were measured."""
+        lens: list[float] = []
+        while k >= 0 and len(lens) < 2:
+            leg = self.legs[k]
+            j = k - 1
+            while j >= 0 and _off_axis(self.legs[j].course, leg.course) \
+                    and not _long(self.legs[j]):
+                j -= 1
+            prev = (self.legs[j] if j >= 0 and _back(self.legs[j].course, leg.course)
+                    and _long(self.legs[j]) else None)
+            if prev is not None:
+                begin = (prev.end[0] - leg.end[0]) * leg.ux + (prev.end[1] - leg.end[1]) * leg.uy
+                lens.append(-begin)
+            elif leg.start is not None:
+                begin = ((leg.start[0] - leg.end[0]) * leg.ux
+                         + (leg.start[1] - leg.end[1]) * leg.uy)
+                lens.append(-begin)
+                break
+            else:
+                break
+            k = j
+        if len(lens) < need or not all(MIN_SPACING_M <= v <= MAX_LEG_M for v in lens):
+            return None
+        if len(lens) == 2 and abs(lens[0] - lens[1]) > LENGTH_TOL * max(lens) + 5.0:
+            return None
+        return lens[0]
+
+
+def _long(leg: Leg) -> bool:
+    """A long leg of a lawnmower lasts at least ``LONG_LEG_S``."""
+    return leg.t1 - leg.t0 >= LONG_LEG_S
+
+
+def _off_axis(c0: float, c1: float) -> bool:
+    """Course ``c1`` (rad) is neither along ``c0`` nor back along it (within
+    ``ANTI_TOL_DEG``)."""
+    d = abs(_turn(c0, c1))
+    return math.radians(ANTI_TOL_DEG) < d < math.pi - math.radians(ANTI_TOL_DEG)
+
+
+def _back(c0: float, c1: float) -> bool:
+    """Course ``c1`` (rad) runs back along ``c0`` (within ``ANTI_TOL_DEG``)."""
+    return abs(_turn(c0, c1 + math.pi)) <= math.radians(ANTI_TOL_DEG)
+
+
+def f_course(f: tuple[float, float, float, float]) -> float:
+    """The course (rad) of a fit from :func:`_fit`."""
+    return math.atan2(f[3], f[2])
