@@ -2,31 +2,36 @@
 
 Without an a-priori plan, a survey AUV still flies one: long legs of one
 length L, back and forth, each pair joined by a short leg of one spacing W,
-every corner 90° and the short legs all the same way (the sweep).  Once the
-filter has shown a long leg, a short leg and the start of the next long leg
-back, the rest of the survey is predictable: :class:`LawnmowerInference`
-returns the plan those legs make — the two corners seen, then the corners
-ahead — and the tracker matches the AUV to it like a plan it was given
-(:mod:`.plan`): the boat turns with the AUV at the predicted corners, and an
-AUV that does not turn there (the survey ended, an adaptive mission) leaves
-the plan as from any other.
+always swept the same way.  From its first legs the rest is predictable:
+:class:`LawnmowerInference` returns the plan they make — the corner where
+the last long leg ended, the one level with it on the new leg, then
+``UTURNS_AHEAD`` U-turns — and the tracker matches the AUV to it as to a
+plan it was given (:mod:`.plan`, tentatively: an AUV that flies straight on
+past a predicted corner has left it at once), so the boat turns with the
+AUV at the corners predicted.
 
 The legs come from the filter's state after every accepted update (local
 NED, m and m/s; filter time, s): a stretch at least ``LEG_MIN_S`` long whose
 course stays within ``BREAK_DEG`` of the stretch's own is a leg, fitted by
-least squares (position against time); it ends when the course is off it on
-``BREAK_UPDATES`` updates in a row, and the next starts once the course has
-settled within ``SETTLE_DEG`` over ``SETTLE_UPDATES`` updates.  A corner is
-where two legs' lines cross.  L is the last long leg's length between its
-corners — or from where the AUV set off (the filter's position when it last
-flew slower than ``MIN_SPEED_MPS``) to its first corner — and, with two
-long legs seen, the two must agree (within ``LENGTH_TOL``); W is the short
-leg's length between its corners.
+least squares (position against time) without its first and last positions
+more than ``END_DEG`` off its course (the turns' ends); it ends when the
+course is off it on ``BREAK_UPDATES`` updates in a row, the next starting
+once the course has settled within ``SETTLE_DEG`` over ``SETTLE_UPDATES``
+updates.  Long legs last at least ``LONG_LEG_S``.
 
-A new inference is returned only when it moves the corners ahead by more
-than ``REPUBLISH_M`` (the matcher starts over on a new plan), and only at the
-start of a long leg (none of its corners close); a pattern broken (a turn
-that is not the lawnmower's next) clears it.
+A lawnmower is looked for on a new leg between ``INFER_AFTER_S`` and
+``INFER_WINDOW_S`` after it started (its first seconds may be the end of the
+turn): the new leg runs back along the last long leg (within
+``ANTI_TOL_DEG``), with only short legs between.  W is its offset from that
+long leg (or, better, the spacing of the two long legs before it); the long
+leg ended where the AUV began its turn; L is that leg's length from where
+the long leg before it ended (level across), or from where the AUV set off
+from hovering.  With a short leg square to the long ones seen between (a
+spacing flown straight) one long leg measured is enough; without (a bare
+reversal, which any route may fly once) two, agreeing within
+``LENGTH_TOL``.  A new plan is returned only when it moves the next corners
+by more than ``REPUBLISH_M``; a long leg across the survey's (longer than
+``OFF_PLAN_SPACINGS`` spacings) clears it.
 
 Pure and deterministic: no I/O, no clocks.
 """
@@ -122,16 +127,6 @@ def _fit(points: list[tuple[float, float, float]]) -> tuple[float, float, float,
     return xb, yb, vx / v, vy / v
 
 
-def _cross(a: Leg, b: Leg) -> Point | None:
-    """Where the lines of legs ``a`` and ``b`` cross; None when nearly parallel."""
-    det = a.ux * b.uy - a.uy * b.ux
-    if abs(det) < 0.5:
-        return None
-    dx, dy = b.x - a.x, b.y - a.y
-    s = (dx * b.uy - dy * b.ux) / det
-    return a.x + s * a.ux, a.y + s * a.uy
-
-
 def _turn(a: float, b: float) -> float:
     return math.remainder(b - a, math.tau)
 
@@ -150,9 +145,6 @@ class LawnmowerInference:
         self._recent: list[tuple[float, float, float, float]] = []
         self._rest: tuple[float, float, float] | None = None
         self._leg_start: Point | None = None
-
-    def reset(self) -> None:
-        self.__init__()  # type: ignore[misc]
 
     def update(self, t: float, x: float, y: float, vx: float, vy: float
                ) -> tuple[Point, ...] | None:
@@ -221,7 +213,7 @@ class LawnmowerInference:
         if f is None:
             return None
         n = len(points)
-        lc = f_course(f)
+        lc = _course_of(f)
         while n > 3 and abs(_turn(lc, courses[n - 1])) > math.radians(END_DEG):
             n -= 1
         i = 0
@@ -238,8 +230,9 @@ class LawnmowerInference:
         return leg
 
     def _infer(self, start: list[tuple[float, float, float]]) -> tuple[Point, ...] | None:
-        """At the start of a leg (its first positions ``start``): the lawnmower
-        the legs before make with it, if they make one (module docstring)."""
+        """On a young leg (its latest positions ``start``): the lawnmower the
+        legs before make with it, if they make one and it is new (module
+        docstring)."""
         got = self._pattern(start)
         if got is None:
             return None
@@ -261,7 +254,7 @@ class LawnmowerInference:
         f = _fit(start)
         if f is None:
             return None
-        bc = f_course(f)
+        bc = _course_of(f)
         k = len(self.legs) - 1
         while k >= 0 and _off_axis(self.legs[k].course, bc) and not _long(self.legs[k]):
             k -= 1  # the spacing: a short leg, or the arcs of a U-turn
@@ -355,6 +348,6 @@ def _back(c0: float, c1: float) -> bool:
     return abs(_turn(c0, c1 + math.pi)) <= math.radians(ANTI_TOL_DEG)
 
 
-def f_course(f: tuple[float, float, float, float]) -> float:
+def _course_of(f: tuple[float, float, float, float]) -> float:
     """The course (rad) of a fit from :func:`_fit`."""
     return math.atan2(f[3], f[2])
