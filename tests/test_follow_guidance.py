@@ -393,3 +393,26 @@ def test_a_plan_target_run_away_from_the_filter_is_not_followed() -> None:
                               t=101.0, t0=101.0)
     g.update(off, 101.0, 95.0, 0.0)
     assert g.target is not None and g.target.source != "plan"
+
+
+def test_a_corner_of_a_guessed_plan_is_taken_once_the_auv_turns_there() -> None:
+    """On a plan the tracker inferred (source ``tracker``), the boat does not
+    cut a corner the AUV may not take (the survey's end): about the corner it
+    follows the filter until the filter's course has turned 15° off the leg's,
+    then the plan; on a plan given, it cuts the corner at once."""
+    plan = ((0.0, 0.0), (100.0, 0.0), (100.0, 20.0), (0.0, 20.0))
+    near = dataclasses.replace(_track(x=97.0, vx=1.0), plan_leg=0, plan_s_m=97.0,
+                               plan_speed_mps=1.0, plan_cross_m=0.0, plan_turn_radius_m=6.0)
+    given = FollowGuidance(FollowSettings())
+    given.set_plan(AuvPlan(0.0, plan, "mission"))
+    _moving(given, near, (96.0, 0.0))
+    assert given.target is not None and given.target.source == "plan"
+    guessed = FollowGuidance(FollowSettings())
+    guessed.set_plan(AuvPlan(0.0, plan, "tracker"))
+    _moving(guessed, near, (96.0, 0.0))
+    assert guessed.target is not None and guessed.target.source != "plan"
+    c = math.radians(20.0)  # the filter's course turning towards the next leg
+    turning = dataclasses.replace(near, kf_vx_mps=math.cos(c), kf_vy_mps=math.sin(c),
+                                  t=101.0, t0=101.0)
+    guessed.update(turning, 101.0, 96.5, 0.0)
+    assert guessed.target is not None and guessed.target.source == "plan"

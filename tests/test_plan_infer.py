@@ -14,8 +14,9 @@ from drivers.sim.auv import Auv, AuvParams
 from tests.test_auv_plan import duration, lawnmower
 from zarco_core.auv_messages import AcousticEvent
 from zarco_runtime.tracking.params import TrackerParams
+from zarco_runtime.tracking.plan import INFERRED_SOURCE
 from zarco_runtime.tracking.plan_infer import LawnmowerInference
-from zarco_runtime.tracking.tracker import INFERRED_SOURCE, AuvTracker
+from zarco_runtime.tracking.tracker import AuvTracker
 
 Point = tuple[float, float]
 

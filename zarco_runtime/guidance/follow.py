@@ -4,7 +4,10 @@ The target is the AUV now, and the path it is on (:mod:`.follow_path`): the
 tracker's filter position carried forward along a straight line, or along
 the AUV's a-priori plan while the tracker has the AUV on it.  With a plan the
 path turns where the plan's legs turn, so the boat turns with the AUV at a
-corner instead of after the track has seen the turn.
+corner instead of after the track has seen the turn (on a plan the tracker
+guessed, :mod:`~zarco_runtime.tracking.plan_infer`, once the filter has the
+AUV turning there: the survey may have ended), and only while the plan's
+target stays within ``PLAN_GATE_M`` of the filter's position.
 
 Two laws (``follow.law``):
 
@@ -73,7 +76,7 @@ from zarco_runtime.guidance.follow_path import (
 )
 from zarco_runtime.guidance.follow_settings import FollowSettings
 from zarco_runtime.guidance.mission import Leg
-from zarco_runtime.tracking.plan import Plan
+from zarco_runtime.tracking.plan import INFERRED_SOURCE, Plan
 
 __all__ = ["FollowGuidance", "FollowSettings", "FollowState", "Target", "target_now"]
 
@@ -93,6 +96,9 @@ MAX_LEAD_RAD = math.radians(90.0)
 REVERSAL_RAD = math.radians(120.0)
 #: a plan's corner turning this much or more (rad) may be turned either way round
 AMBIGUOUS_TURN_RAD = math.radians(178.0)
+#: on a plan the tracker guessed, the AUV is taken to turn at a corner once the
+#: filter's course is this far (deg) off the course before it
+TENTATIVE_TURN_DEG = 15.0
 #: the plan's target is followed only within this (m, plus 3σ of the filter's
 #: position) of the filter's position carried to now
 PLAN_GATE_M = 8.0
@@ -396,10 +402,19 @@ class FollowGuidance:
         leg = plan.leg_at(path.s)
         since = path.s - leg.s0_m  # since the last corner, or the plan's start
         to = leg.s0_m + leg.length_m - path.s if leg.index + 1 < len(plan.legs) else math.inf
-        if (to > zone + self.cfg.lookahead_m
-                and since > max(zone, math.hypot(tg.vx, tg.vy) * PLAN_AFTER_CORNER_S)):
+        after = since <= max(zone, math.hypot(tg.vx, tg.vy) * PLAN_AFTER_CORNER_S)
+        if to > zone + self.cfg.lookahead_m and not after:
             self._sm_plan = None
             return None
+        if msg.source == INFERRED_SOURCE:
+            # a guessed corner is taken once the AUV turns there: the filter's
+            # course off the course before the corner by TENTATIVE_TURN_DEG
+            before = plan.legs[leg.index - 1] if after and leg.index > 0 else leg
+            kc = math.atan2(track.kf_vy_mps, track.kf_vx_mps)
+            if abs(math.remainder(kc - before.course_rad, math.tau)) < math.radians(
+                    TENTATIVE_TURN_DEG):
+                self._sm_plan = None
+                return None
         v = math.hypot(tg.vx, tg.vy)
         r = path.radius
         sm = self._sm_plan

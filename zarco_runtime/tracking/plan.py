@@ -54,9 +54,11 @@ from zarco_runtime.tracking.plan_geometry import (
 )
 from zarco_runtime.tracking.plan_progress import AlongPlan
 
-__all__ = ["MAX_POINTS", "AlongPlan", "Plan", "PlanError", "PlanLeg", "PlanMatcher",
-           "PlanParams", "check_points", "geodetic_plan"]
+__all__ = ["INFERRED_SOURCE", "MAX_POINTS", "AlongPlan", "Plan", "PlanError", "PlanLeg",
+           "PlanMatcher", "PlanParams", "check_points", "geodetic_plan"]
 
+#: the source of a plan the tracker inferred (:mod:`.plan_infer`): a tentative one
+INFERRED_SOURCE = "tracker"
 #: on a tentative plan, an AUV further past a corner than this many seconds of
 #: its speed (and this many metres), still within this of the leg's course
 #: (deg), has not turned there

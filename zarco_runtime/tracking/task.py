@@ -19,7 +19,8 @@ from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock
 from zarco_core.messages import Event
 from zarco_runtime.tracking.params import TrackerParams
-from zarco_runtime.tracking.tracker import INFERRED_SOURCE, AuvTracker
+from zarco_runtime.tracking.plan import INFERRED_SOURCE
+from zarco_runtime.tracking.tracker import AuvTracker
 
 #: how often the track is aged without events (s)
 TICK_S = 1.0

@@ -96,7 +96,7 @@ from zarco_runtime.tracking.imm import Imm, ModelSpec, turn_step
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.maneuver import ManeuverDetector
 from zarco_runtime.tracking.params import Network, TrackerParams
-from zarco_runtime.tracking.plan import PlanMatcher
+from zarco_runtime.tracking.plan import INFERRED_SOURCE, PlanMatcher
 from zarco_runtime.tracking.plan_infer import LawnmowerInference
 from zarco_runtime.tracking.rls import LineRls
 from zarco_runtime.tracking.timemap import ClockCheck, TimeMap
@@ -118,9 +118,6 @@ WINDOW_OFF_DROPS = 6
 PLAN_STRAIGHT_MARGIN_M = 3.0
 
 Out = list[AuvFix | AuvTrack]
-
-#: the source of a plan the tracker inferred (:mod:`.plan_infer`)
-INFERRED_SOURCE = "tracker"
 
 
 class AuvTracker:
