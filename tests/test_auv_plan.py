@@ -313,4 +313,5 @@ def test_a_guessed_plan_is_left_as_soon_as_the_auv_flies_straight_past_a_corner(
     t_corner = duration(route[: k + 1], v)
     t_left = next(t for t, leg in hist if t > t_corner - 5.0 and leg == -1)
     assert t_left <= t_corner + max(4.0 / v, 5.0) + 5.0, (t_left, t_corner)
-    assert any("straight on past the end of leg" in e for e in m.events), m.events
+    # pts[k] ends leg k (numbered from 1)
+    assert any(f"straight on past the end of leg {k})" in e for e in m.events), m.events

@@ -358,9 +358,9 @@ class PlanMatcher:
             reason = f"{abs(f.cross):.0f} m {'starboard' if f.cross > 0 else 'port'} of leg {k + 1}"
         elif k + 1 < len(legs) and f.along > leg.length_m + zone:
             reason = f"past the end of leg {k + 1} without turning"
-        elif self.tentative and self._straight_on(k, x, y, vx, vy):
+        elif self.tentative and (passed := self._straight_on(k, x, y, vx, vy)) >= 0:
             # a guessed corner the AUV flew straight past: no such corner
-            self._leave(f"straight on past the end of leg {max(k, 1)}")
+            self._leave(f"straight on past the end of leg {passed + 1}")
             return
         elif not f.course_ok and not (near_end or near_start):
             course = math.degrees(math.atan2(vy, vx)) % 360.0
@@ -375,10 +375,10 @@ class PlanMatcher:
             return
         self._leave(reason)
 
-    def _straight_on(self, k: int, x: float, y: float, vx: float, vy: float) -> bool:
-        """On leg ``k`` or just past it onto ``k`` + 1: the AUV further along
-        one of the two than its end plus ``TENTATIVE_PAST_S`` of its speed (and
-        ``TENTATIVE_PAST_M``) and still on that leg's course (within
+    def _straight_on(self, k: int, x: float, y: float, vx: float, vy: float) -> int:
+        """On leg ``k`` or just past it onto ``k`` + 1: the leg (index; −1: none)
+        the AUV is further along than its end plus ``TENTATIVE_PAST_S`` of its
+        speed (and ``TENTATIVE_PAST_M``), still on its course (within
         ``TENTATIVE_STRAIGHT_DEG``): a guessed corner is where the AUV began
         its turns, and by then it would have turned more than that."""
         assert self.plan is not None
@@ -392,8 +392,8 @@ class PlanMatcher:
             past = max(TENTATIVE_PAST_M, TENTATIVE_PAST_S * math.hypot(vx, vy))
             if along > leg.length_m + past and abs(math.remainder(
                     c - leg.course_rad, math.tau)) < math.radians(TENTATIVE_STRAIGHT_DEG):
-                return True
-        return False
+                return j
+        return -1
 
     def _leave(self, reason: str) -> None:
         self.leg = -1
