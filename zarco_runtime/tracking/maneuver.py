@@ -55,6 +55,7 @@ from collections import deque
 
 from zarco_runtime.tracking.imm import Imm
 from zarco_runtime.tracking.kalman import CvKalman
+from zarco_runtime.tracking.ls_fit import ls_velocity
 from zarco_runtime.tracking.params import TrackerParams
 
 #: the quiet model's turn rate is averaged over this long (s) to tell an arc
@@ -79,20 +80,12 @@ def _course(entries: list[tuple[float, float, float, float]], sigma_m: float
     """The course (rad) of the least-squares velocity through the positions of
     ``entries`` (time s, north m, east m, ...) and its 1σ (rad) for positions
     of ``sigma_m`` 1σ each; None with fewer than 3 or no speed."""
-    n = len(entries)
-    if n < 3:
+    if len(entries) < 3:
         return None
-    tb = sum(e[0] for e in entries) / n
-    xb = sum(e[1] for e in entries) / n
-    yb = sum(e[2] for e in entries) / n
-    stt = sum((e[0] - tb) ** 2 for e in entries)
-    if stt <= 0.0:
+    f = ls_velocity(entries)
+    if f is None:
         return None
-    vx = sum((e[0] - tb) * (e[1] - xb) for e in entries) / stt
-    vy = sum((e[0] - tb) * (e[2] - yb) for e in entries) / stt
-    v = math.hypot(vx, vy)
-    if v <= 0.0:
-        return None
+    _, _, vx, vy, v, stt = f
     return math.atan2(vy, vx), sigma_m / (v * math.sqrt(stt))
 
 

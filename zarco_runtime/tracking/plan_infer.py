@@ -41,6 +41,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from zarco_runtime.tracking.ls_fit import ls_velocity
+
 #: below this speed (m/s) the AUV hovers: no leg, and the set-off point is kept
 MIN_SPEED_MPS = 0.3
 #: a leg lasts at least this long (s)
@@ -112,18 +114,10 @@ class Leg:
 def _fit(points: list[tuple[float, float, float]]) -> tuple[float, float, float, float] | None:
     """(mean north, mean east, unit direction) of positions (t, x, y) fitted
     against time; None without motion."""
-    n = len(points)
-    tb = sum(p[0] for p in points) / n
-    xb = sum(p[1] for p in points) / n
-    yb = sum(p[2] for p in points) / n
-    stt = sum((p[0] - tb) ** 2 for p in points)
-    if stt <= 0.0:
+    f = ls_velocity(points)
+    if f is None:
         return None
-    vx = sum((p[0] - tb) * (p[1] - xb) for p in points) / stt
-    vy = sum((p[0] - tb) * (p[2] - yb) for p in points) / stt
-    v = math.hypot(vx, vy)
-    if v <= 0.0:
-        return None
+    xb, yb, vx, vy, v, _ = f
     return xb, yb, vx / v, vy / v
 
 
