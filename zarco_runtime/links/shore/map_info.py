@@ -27,8 +27,8 @@ geodetic (WGS-84, degrees); a value the boat does not know is ``null``.
     ``{kind, name, active, waypoints: [[lat_deg, lon_deg], ...]}`` (the lines'
     ends, in order), or ``null``.
 ``auv_plan``
-    the AUV's a-priori plan while following with one: ``[[lat_deg, lon_deg],
-    ...]`` (empty: none).
+    the AUV's plan while following with one — given, or the lawnmower the
+    tracker inferred from its legs: ``[[lat_deg, lon_deg], ...]`` (empty: none).
 """
 
 from __future__ import annotations
