@@ -376,23 +376,28 @@ def test_a_reversal_on_its_plan_is_turned_the_way_the_auv_turns() -> None:
     assert offs[-1] < -10.0
 
 
-def test_a_plan_target_run_away_from_the_filter_is_not_followed() -> None:
-    """The plan's progress is carried forward on its own: once it is more
-    than 8 m (plus 3σ) from where the filter has the AUV — an AUV that left
-    its plan, not yet noticed — the boat follows the filter's target."""
+def test_a_guessed_plan_target_run_away_from_the_filter_is_not_followed() -> None:
+    """The progress along a plan the tracker guessed is carried forward on its
+    own: once it is more than 8 m (plus 3σ) from where the filter has the
+    AUV — an AUV that left the plan, not yet noticed — the boat follows the
+    filter's target.  On a plan given, the plan's (the filter may be the one
+    off)."""
     plan = ((0.0, 0.0), (100.0, 0.0), (100.0, 20.0))
-    g = FollowGuidance(FollowSettings())
-    g.set_plan(AuvPlan(0.0, plan, "mission"))
-    on = dataclasses.replace(_track(x=95.0, vx=1.0), plan_leg=0, plan_s_m=95.0,
-                             plan_speed_mps=1.0, plan_cross_m=0.0, plan_turn_radius_m=6.0)
-    _moving(g, on, (94.0, 0.0))
-    assert g.target is not None and g.target.source == "plan"
-    # the filter has the AUV 15 m off, going on north-east; the plan's progress
+    c = math.radians(20.0)  # turning into the corner: the guessed corner is taken
+    on = dataclasses.replace(_track(x=97.0, vx=1.0, kf=(97.0, 0.0, math.cos(c), math.sin(c))),
+                             plan_leg=0, plan_s_m=97.0, plan_speed_mps=1.0, plan_cross_m=0.0,
+                             plan_turn_radius_m=6.0)
+    # the filter has the AUV 15 m off, going on south-east; the plan's progress
     # still at the corner
     off = dataclasses.replace(on, kf_x_m=100.0, kf_y_m=-15.0, kf_vx_mps=0.7, kf_vy_mps=-0.7,
                               t=101.0, t0=101.0)
-    g.update(off, 101.0, 95.0, 0.0)
-    assert g.target is not None and g.target.source != "plan"
+    for source, followed in (("tracker", False), ("mission", True)):
+        g = FollowGuidance(FollowSettings())
+        g.set_plan(AuvPlan(0.0, plan, source))
+        _moving(g, on, (96.0, 0.0))
+        assert g.target is not None and g.target.source == "plan", source
+        g.update(off, 101.0, 96.5, 0.0)
+        assert g.target is not None and (g.target.source == "plan") == followed, source
 
 
 def test_a_corner_of_a_guessed_plan_is_taken_once_the_auv_turns_there() -> None:

@@ -6,8 +6,8 @@ the AUV's a-priori plan while the tracker has the AUV on it.  With a plan the
 path turns where the plan's legs turn, so the boat turns with the AUV at a
 corner instead of after the track has seen the turn (on a plan the tracker
 guessed, :mod:`~zarco_runtime.tracking.plan_infer`, once the filter has the
-AUV turning there: the survey may have ended), and only while the plan's
-target stays within ``PLAN_GATE_M`` of the filter's position.
+AUV turning there: the survey may have ended, and only while the plan's
+target stays within ``PLAN_GATE_M`` of the filter's position).
 
 Two laws (``follow.law``):
 
@@ -99,8 +99,8 @@ AMBIGUOUS_TURN_RAD = math.radians(178.0)
 #: on a plan the tracker guessed, the AUV is taken to turn at a corner once the
 #: filter's course is this far (deg) off the course before it
 TENTATIVE_TURN_DEG = 15.0
-#: the plan's target is followed only within this (m, plus 3σ of the filter's
-#: position) of the filter's position carried to now
+#: a guessed plan's target is followed only within this (m, plus 3σ of the
+#: filter's position) of the filter's position carried to now
 PLAN_GATE_M = 8.0
 #: a still AUV further than this many position σ (and 1 m) is closed in on
 #: before its track has settled
@@ -389,13 +389,15 @@ class FollowGuidance:
             self._sm_plan = None
             return None
         tg, path = got
-        # the plan's progress is carried forward on its own: where it has run
-        # away from the filter (an AUV that left the plan, not yet noticed),
-        # the filter is followed
+        # the progress along a guessed plan is carried forward on its own: where
+        # it has run away from the filter (an AUV that left the plan, not yet
+        # noticed), the filter is followed.  (On a plan given, the filter is
+        # as often the one off: a survey error, two beacons.)
         dt = t - track.t0
         sigma = track.kf_pos_sigma_m if math.isfinite(track.kf_pos_sigma_m) else 0.0
-        if math.hypot(tg.x - track.kf_x_m - track.kf_vx_mps * dt,
-                      tg.y - track.kf_y_m - track.kf_vy_mps * dt) > PLAN_GATE_M + 3.0 * sigma:
+        if msg.source == INFERRED_SOURCE and math.hypot(
+                tg.x - track.kf_x_m - track.kf_vx_mps * dt,
+                tg.y - track.kf_y_m - track.kf_vy_mps * dt) > PLAN_GATE_M + 3.0 * sigma:
             self._sm_plan = None
             return None
         zone = max(PLAN_CORNER_ZONE_M, 1.2 * path.radius)
