@@ -15,7 +15,7 @@ from tests.test_auv_plan import duration, lawnmower
 from zarco_core.auv_messages import AcousticEvent
 from zarco_runtime.tracking.params import TrackerParams
 from zarco_runtime.tracking.plan import INFERRED_SOURCE
-from zarco_runtime.tracking.plan_infer import LawnmowerInference
+from zarco_runtime.tracking.plan_infer import MAX_LEG_POINTS, LawnmowerInference
 from zarco_runtime.tracking.tracker import AuvTracker
 
 Point = tuple[float, float]
@@ -135,3 +135,16 @@ def test_the_tracker_infers_a_lawnmower_from_real_fixes_and_takes_the_auv_on_it(
     tracker.set_plan((), "")  # the given plan cleared: the inferred one serves again
     assert len(tracker.inferred) == n + 1 and tracker.plan.plan is not None
     assert len(tracker.plan.plan.legs) == len(first) - 1
+
+
+def test_a_long_straight_run_keeps_the_legs_work_bounded() -> None:
+    """An hour of fixes along one line: the leg being flown keeps at most its
+    latest ``MAX_LEG_POINTS`` positions (the work per update and the memory
+    stay bounded) and nothing is inferred."""
+    rng = np.random.default_rng(9)
+    inf = LawnmowerInference()
+    for k in range(3600):
+        got = inf.update(float(k), float(k) + rng.normal(0.0, 0.5), rng.normal(0.0, 0.5), 1.0,
+                         rng.normal(0.0, 0.03))
+        assert got is None
+    assert 0 < len(inf._cur) <= MAX_LEG_POINTS

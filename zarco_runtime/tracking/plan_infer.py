@@ -47,6 +47,9 @@ from zarco_runtime.tracking.ls_fit import ls_velocity
 MIN_SPEED_MPS = 0.3
 #: a leg lasts at least this long (s)
 LEG_MIN_S = 6.0
+#: a leg is fitted on its latest this many positions at most (bounded work per
+#: update and memory on a long straight run: 10 minutes of fixes a second)
+MAX_LEG_POINTS = 600
 #: a leg ends when the course is this far (deg) off its own on this many updates in a row
 BREAK_DEG = 30.0
 BREAK_UPDATES = 2
@@ -154,6 +157,8 @@ class LawnmowerInference:
         if self._cur:
             self._cur.append((t, x, y))
             self._cur_c.append(c)
+            if len(self._cur) > MAX_LEG_POINTS:  # a long leg: its latest stretch
+                del self._cur[0], self._cur_c[0]
             self._off = self._off + 1 if abs(_turn(self._cur_course, c)) > math.radians(
                 BREAK_DEG) else 0
             if self._off >= BREAK_UPDATES:
