@@ -151,7 +151,7 @@ class LawnmowerInference:
             return None
         if math.hypot(vx, vy) < MIN_SPEED_MPS:
             self._rest = (t, x, y)
-            self._cur, self._recent, self._off = [], [], 0
+            self._cur, self._cur_c, self._recent, self._off = [], [], [], 0
             return None
         c = math.atan2(vy, vx)
         if self._cur:
