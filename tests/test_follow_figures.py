@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from zarco_tools.campaign.tables import format_summary, summarise, time_above
 from zarco_tools.follow_distance import (
     Manoeuvre,
     manoeuvre_rows,
@@ -21,9 +22,10 @@ from zarco_tools.follow_distance import (
     recovery_s,
     settled_figures,
     settled_windows,
+    time_above_by_phase,
     whole_figures,
 )
-from zarco_tools.follow_report import acquisition_time, sound_speed_figures
+from zarco_tools.follow_report import above_line, acquisition_time, sound_speed_figures
 
 ROOT = Path(__file__).resolve().parents[1]
 DT = 0.1
@@ -105,6 +107,41 @@ def test_settled_figures_leave_out_the_minute_after_each_manoeuvre_and_the_hover
     assert f == {"settled_distance_median_m": 0.5, "settled_distance_p95_m": 2.0}
     # ... while over the whole time the 8 m turn and the 2 m stretch both count
     assert whole_figures(t, d, 20.0)["distance_max_m"] == 8.0
+
+
+def test_the_time_further_than_4_m_is_told_by_phase_against_the_p95_budget() -> None:
+    """Acquired at 10 s, the AUV starts at 50 s, turns 90° at 200–210 s and
+    180° at 300–320 s, runs to 500 s.  Further than 4 m: 10–20 s (6 m: the
+    approach), 30–35 s (the hover), 70–80 s (the set-off: within the minute
+    after the start), 205–215 s (the turn), 330–350 s (the U-turn's minute),
+    400–402 s (straight) and 2–8 s (before acquisition: not counted)."""
+    man = [Manoeuvre(200.0, 210.0, math.pi / 2), Manoeuvre(300.0, 320.0, math.pi)]
+    t, d = series(500.0, [(2.0, 8.0, 9.0), (10.0, 20.0, 6.0), (30.0, 35.0, 4.5),
+                          (70.0, 80.0, 5.0), (205.0, 215.0, 7.0), (330.0, 350.0, 12.0),
+                          (400.0, 402.0, 4.2)])
+    a = time_above_by_phase(t, d, 10.0, 50.0, man)
+    assert a == pytest.approx({"hover": 15.0, "set_off": 10.0, "turn": 10.0, "uturn": 20.0,
+                               "arc": 0.0, "straight": 2.0, "total": 57.0,
+                               "budget": 0.05 * 490.0})
+    # exactly 4 m is within the target; never acquired: nothing to tell
+    t, d = series(100.0, [(10.0, 20.0, 4.0)])
+    assert time_above_by_phase(t, d, 0.0, 50.0, [])["total"] == 0.0
+    assert time_above_by_phase(t, d, None, 50.0, []) == {}
+    # the summary's line names the phases that count and the budget
+    line = above_line(a)
+    assert "57.0 s" in line and "24.5 s" in line and "u-turn" not in line
+    assert "uturn 20.0" in line and "set-off 10.0" in line and "arc" not in line
+    # a campaign adds the missions up, counting those over their budget
+    recs = [{"index": i, "family": "lawnmower", "factors": {}, "fails": {}, "exempt": {},
+             "severity": 0.0, "scenario_seed": 1, "overrides": [],
+             "figures": {"time_above_4m_s": {**a, "total": tot, "budget": 24.5}}}
+            for i, tot in enumerate((57.0, 20.0))]
+    tab = time_above(recs)
+    assert tab["hover"] == 30.0 and tab["total"] == 77.0 and tab["budget"] == 49.0
+    assert tab["missions"] == 2 and tab["over_budget"] == 1
+    text = format_summary(summarise(recs, ("p95",), "follow.toml", []))
+    assert "further than 4 m from the AUV: 77 s over 2 missions (1 over" in text
+    assert "hover 30 s (39 %)" in text
 
 
 def test_a_manoeuvre_that_lasts_keeps_its_whole_length_out_of_the_settled_windows() -> None:

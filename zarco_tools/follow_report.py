@@ -10,6 +10,10 @@
 * ``distance_median_m``, ``distance_p95_m``, ``distance_max_m``: the ASV–AUV
   horizontal distance over the whole followed time, from acquisition to the
   end of the run (the approach, every turn, every loss included);
+* ``time_above_4m_s``: where the whole-time p95 goes — the seconds further
+  than 4 m from the AUV by phase (``hover``, ``set_off``, ``turn``,
+  ``uturn``, ``arc``, ``straight``), their ``total`` and the ``budget`` a p95
+  within 4 m allows (5 % of the followed time): :mod:`zarco_tools.follow_distance`;
 * ``settled_distance_median_m``, ``settled_distance_p95_m``: the same on
   straight legs only, leaving out the minute after each manoeuvre (and after
   the AUV starts moving);
@@ -47,11 +51,13 @@ import numpy as np
 
 from zarco_core.auv_messages import AuvFix, AuvTrack, TrackFlags
 from zarco_tools.follow_distance import (
+    PHASES,
     Manoeuvre,
     manoeuvre_rows,
     merge_manoeuvres,
     settled_figures,
     settled_windows,
+    time_above_by_phase,
     whole_figures,
 )
 from zarco_tools.sim_report import TrackLog
@@ -241,6 +247,7 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
         "turns": turn_rows,
         "acquired_s": acquired if acquired is not None else math.nan,
         **whole_figures(t, dist, acquired),
+        "time_above_4m_s": time_above_by_phase(t, dist, acquired, move_start, man),
         **settled_figures(t, dist, moving, acquired,
                           settled_windows(move_start, man, t_end)),
         **sound_speed_figures(tracks, configured, float(acoustics.c), acquired),
@@ -254,6 +261,17 @@ def follow_figures(log: TrackLog, counters: dict[str, Any]) -> dict[str, Any]:
 
 def _fmt(v: Any, unit: str = "m", digits: int = 3) -> str:
     return f"{v:.{digits}f} {unit}" if isinstance(v, (int, float)) else "—"
+
+
+def above_line(above: dict[str, float]) -> str:
+    """The time further than 4 m from the AUV, by phase, against the budget a
+    p95 within 4 m allows (one line; the breakdown of ``time_above_4m_s``)."""
+    if not above:
+        return "further than 4 m: — (never acquired)"
+    parts = ", ".join(f"{p.replace('_', '-')} {above[p]:.1f}" for p in PHASES
+                      if above.get(p))
+    return (f"further than 4 m from the AUV {above['total']:.1f} s (a p95 within 4 m "
+            f"allows {above['budget']:.1f} s)" + (f": {parts} s" if parts else ""))
 
 
 def follow_summary(report: dict[str, Any]) -> str:
@@ -276,6 +294,7 @@ def follow_summary(report: dict[str, Any]) -> str:
         f"ASV–AUV distance, settled (straight legs, without the minute after each "
         f"manoeuvre): median {_fmt(report.get('settled_distance_median_m'))}  "
         f"p95 {_fmt(report.get('settled_distance_p95_m'))}",
+        above_line(report.get("time_above_4m_s") or {}),
         f"sound speed: tracker's estimate {_fmt(report.get('sound_speed_est_mps'), 'm/s', 1)}"
         f", true {_fmt(report.get('sound_speed_true_mps'), 'm/s', 1)} (configured "
         f"{_fmt(report.get('sound_speed_configured_mps'), 'm/s', 1)}); largest error from "

@@ -70,8 +70,8 @@ def main() -> int:
         "pass_by": {cat: {v: counts(g) for v, g in groups.items()}
                     for cat, groups in s["by"].items()},
         "manoeuvres": s["turns"], "exempt": s["exempt"], "worst": s["worst"],
-        "spread": s["spread"], "factor_effects": {k: v[:3] for k, v in
-                                                  s.get("factor_effects", {}).items()},
+        "spread": s["spread"], "time_above_4m_s": s.get("time_above_4m_s"),
+        "factor_effects": {k: v[:3] for k, v in s.get("factor_effects", {}).items()},
         "cpu_s_per_mission": s["cpu_s_per_mission"], "wall_s": s["wall_s"],
         "results": str(out / "results.jsonl"),
     }, allow_nan=False))

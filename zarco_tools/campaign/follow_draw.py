@@ -110,7 +110,8 @@ class FollowDrawer:
     settings: ClassVar[dict[str, tuple[Any, ...]]] = {"route": tuple(ROUTE_RANGES)}
     figures: ClassVar[tuple[str, ...]] = (
         "stop", "sim_seconds", "acquired_s", "distance_median_m", "distance_p95_m",
-        "distance_max_m", "settled_distance_median_m", "settled_distance_p95_m", "turns",
+        "distance_max_m", "settled_distance_median_m", "settled_distance_p95_m",
+        "time_above_4m_s", "turns",
         "lost_max_s", "hold_max_s", "fix_gap_max_s", "track_lost_events",
         "sound_speed_est_mps", "sound_speed_true_mps", "sound_speed_configured_mps",
         "sound_speed_error_max_pct", "fix_interval_s", "fixes", "fix_error_rms_m",

@@ -1,7 +1,8 @@
 """A campaign's tables: which missions meet which target, per family and per
 drawn category; the missions physics exempts, with their figures; the worst
 missions with the ``zarco sim`` command that reproduces each; the spread of
-the main figures.
+the main figures; where the follow missions' time further than 4 m from
+the AUV went (the whole-time p95 target's budget, by phase).
 
 A mission passes a check when the check is neither failed nor exempt.  A
 check applies to a mission that has something to judge: a turn check to a
@@ -19,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from zarco_tools.campaign.draw import Mission
+from zarco_tools.follow_distance import PHASES
 
 #: categorical factors tabulated beside the families (when drawn)
 CATEGORIES = ("route", "plan", "calibration", "beacons", "layout")
@@ -77,6 +79,22 @@ def _closing_class(c: float) -> str:
     return "?"
 
 
+def time_above(recs: list[dict[str, Any]]) -> dict[str, Any]:
+    """Where the whole-time p95 goes, over the missions whose report has it: the
+    seconds further than 4 m from the AUV by phase (``time_above_4m_s`` of
+    :mod:`zarco_tools.follow_report`) summed, their total, the summed budget
+    (5 % of each followed time) and how many missions spent more than theirs;
+    empty when no mission has it."""
+    rows = [a for r in recs if (a := (r.get("figures") or {}).get("time_above_4m_s"))]
+    if not rows:
+        return {}
+    out: dict[str, Any] = {p: round(sum(float(a.get(p, 0.0)) for a in rows), 1)
+                           for p in (*PHASES, "total", "budget")}
+    out["missions"] = len(rows)
+    out["over_budget"] = sum(1 for a in rows if a["total"] > a["budget"])
+    return out
+
+
 def summarise(records: list[dict[str, Any]], checks: tuple[str, ...], scenario_file: str,
               sets: list[str], worst: int = 5) -> dict[str, Any]:
     """The campaign's tables as data (see the module's docstring)."""
@@ -120,7 +138,7 @@ def summarise(records: list[dict[str, Any]], checks: tuple[str, ...], scenario_f
             "by_family": {f: _group([r for r in recs if r["family"] == f], checks)
                           for f in families},
             "by": by, "turns": turns, "exempt": exempt, "worst": worst_rows,
-            "spread": spread,
+            "spread": spread, "time_above_4m_s": time_above(recs),
             "cpu_s_per_mission": round(float(np.mean(cpu)), 2) if cpu else None}
 
 
@@ -165,6 +183,14 @@ def format_summary(s: dict[str, Any]) -> str:
         for e in s["exempt"]:
             for check, why in e["checks"].items():
                 lines.append(f"  m{e['index']:04d} {e['family']}: {check}: {why}")
+    above = s.get("time_above_4m_s") or {}
+    if above:
+        tot = above["total"] or 1.0
+        lines += ["", f"further than 4 m from the AUV: {above['total']:.0f} s over "
+                      f"{above['missions']} missions ({above['over_budget']} over the 5 % a "
+                      f"p95 within 4 m allows, {above['budget']:.0f} s together): " + ", ".join(
+                          f"{p.replace('_', '-')} {above[p]:.0f} s ({100.0 * above[p] / tot:.0f} %)"
+                          for p in PHASES if above[p])]
     if s["spread"]:
         lines += ["", "spread over the missions (p50 / p90 / max):"]
         for k, d in s["spread"].items():
