@@ -144,6 +144,26 @@ def test_the_time_further_than_4_m_is_told_by_phase_against_the_p95_budget() -> 
     assert "hover 30 s (39 %)" in text
 
 
+def test_a_follow_campaign_draws_where_its_p95_goes(tmp_path: Path) -> None:
+    """``above.png``: one stacked bar per family and one for all, a real PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.image import imread
+
+    from zarco_tools.campaign.plots import plot_time_above
+
+    above = {"hover": 15.0, "set_off": 10.0, "turn": 0.0, "uturn": 20.0, "arc": 0.0,
+             "straight": 2.0, "total": 47.0, "budget": 24.5}
+    recs = [{"family": f, "figures": {"time_above_4m_s": above}}
+            for f in ("lawnmower", "spiral")]
+    p = plot_time_above(tmp_path, recs, "follow seed 1")
+    assert p == str(tmp_path / "above.png")
+    img = imread(p)
+    assert img.ndim == 3 and img.shape[0] > 100 and img.shape[1] > 500
+    assert plot_time_above(tmp_path, [{"family": "lines", "figures": {}}], "lines") is None
+
+
 def test_a_manoeuvre_that_lasts_keeps_its_whole_length_out_of_the_settled_windows() -> None:
     arc = Manoeuvre(100.0, 290.0, math.tau, arc=True)
     assert settled_windows(20.0, [arc], 500.0) == [(80.0, 100.0), (350.0, 500.0)]

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from zarco_tools.campaign.tables import applies
+from zarco_tools.follow_distance import PHASES
 
 #: figures plotted: name, the check it belongs to, its target's name (those
 #: present are drawn)
@@ -109,8 +110,9 @@ def plot_campaign(out_dir: Path, records: list[dict[str, Any]], checks: list[str
                   title: str, targets: dict[str, float] | None = None) -> list[str]:
     """``figures.png`` (every plotted figure against the drawn factors that move
     the miss rates most; a mission that missed the figure's target in red, its
-    target dashed) and ``breaks.png`` (the miss-rate differences as a map);
-    returns the files written."""
+    target dashed), ``breaks.png`` (the miss-rate differences as a map) and,
+    for follow campaigns, ``above.png`` (:func:`plot_time_above`); returns the
+    files written."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -176,4 +178,41 @@ def plot_campaign(out_dir: Path, records: list[dict[str, Any]], checks: list[str
         fig.savefig(p, dpi=90)
         plt.close(fig)
         written.append(str(p))
+    above = plot_time_above(out_dir, records, title)
+    if above is not None:
+        written.append(above)
     return written
+
+
+def plot_time_above(out_dir: Path, records: list[dict[str, Any]], title: str) -> str | None:
+    """``above.png``: per family (and all), the seconds further than 4 m from
+    the AUV summed over its missions, stacked by phase, beside the budget a
+    p95 within 4 m allows them (a black tick); None when no mission has the
+    figure."""
+    import matplotlib.pyplot as plt
+
+    rows = [(r["family"], a) for r in records
+            if (a := (r.get("figures") or {}).get("time_above_4m_s"))]
+    if not rows:
+        return None
+    groups = sorted({f for f, _a in rows})
+    names = [*groups, "all"] if len(groups) > 1 else groups
+    sums = {n: {k: sum(float(a.get(k, 0.0)) for f, a in rows if n in ("all", f))
+                for k in (*PHASES, "budget")} for n in names}
+    fig, ax = plt.subplots(figsize=(7.5, 1.0 + 0.45 * len(names)))
+    left = np.zeros(len(names))
+    for ph in PHASES:
+        w = np.array([sums[n][ph] for n in names])
+        ax.barh(names, w, left=left, label=ph.replace("_", "-"))
+        left += w
+    ax.scatter([sums[n]["budget"] for n in names], names, marker="|", s=300, c="k",
+               label="budget (5 %)", zorder=3)
+    ax.invert_yaxis()
+    ax.set_xlabel("s further than 4 m from the AUV, summed over the missions", fontsize=8)
+    ax.legend(fontsize=7, ncol=4, loc="lower right")
+    ax.set_title(f"{title}: where the whole-time p95 goes", fontsize=9)
+    fig.tight_layout()
+    p = out_dir / "above.png"
+    fig.savefig(p, dpi=90)
+    plt.close(fig)
+    return str(p)
