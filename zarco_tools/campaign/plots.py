@@ -199,7 +199,7 @@ def plot_time_above(out_dir: Path, records: list[dict[str, Any]], title: str) ->
     names = [*groups, "all"] if len(groups) > 1 else groups
     sums = {n: {k: sum(float(a.get(k, 0.0)) for f, a in rows if n in ("all", f))
                 for k in (*PHASES, "budget")} for n in names}
-    fig, ax = plt.subplots(figsize=(7.5, 1.0 + 0.45 * len(names)))
+    fig, ax = plt.subplots(figsize=(9.0, 1.0 + 0.45 * len(names)))
     left = np.zeros(len(names))
     for ph in PHASES:
         w = np.array([sums[n][ph] for n in names])
@@ -209,7 +209,7 @@ def plot_time_above(out_dir: Path, records: list[dict[str, Any]], title: str) ->
                label="budget (5 %)", zorder=3)
     ax.invert_yaxis()
     ax.set_xlabel("s further than 4 m from the AUV, summed over the missions", fontsize=8)
-    ax.legend(fontsize=7, ncol=4, loc="lower right")
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     ax.set_title(f"{title}: where the whole-time p95 goes", fontsize=9)
     fig.tight_layout()
     p = out_dir / "above.png"
