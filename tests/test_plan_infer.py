@@ -7,16 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from drivers.buoy_parser import parse_buoy
-from drivers.nmea import NmeaFramer
-from drivers.sim.acoustics import AcousticWorld, LblParams
 from drivers.sim.auv import Auv, AuvParams
 from tests.test_auv_plan import duration, lawnmower
-from zarco_core.auv_messages import AcousticEvent
-from zarco_runtime.tracking.params import TrackerParams
+from tests.tracker_rig import run
 from zarco_runtime.tracking.plan import INFERRED_SOURCE
 from zarco_runtime.tracking.plan_infer import MAX_LEG_POINTS, LawnmowerInference
-from zarco_runtime.tracking.tracker import AuvTracker
 
 Point = tuple[float, float]
 
@@ -98,23 +93,9 @@ def test_the_tracker_infers_a_lawnmower_from_real_fixes_and_takes_the_auv_on_it(
     plan coming back from the bus changes nothing."""
     pts = [[100.0 + x, 100.0 + y] for x, y in (
         (0, 0), (70, 0), (70, 25), (0, 25), (0, 50), (70, 50), (70, 75), (0, 75))]
-    lp = LblParams()
-    world = AcousticWorld(lp, Auv(AuvParams(waypoints=pts, speed_mps=1.0, turn_rate_dps=10.0,
-                                            start_delay_s=20.0)), 1,
-                          start_utc_epoch_s=1_780_308_000.0)
-    tracker = AuvTracker(TrackerParams(network=lp.network(), auv_depth_m=10.0))
-    framer = NmeaFramer()
-    t = 0.0
-    t_end = 20.0 + duration(pts[:6], 1.0)  # through the second U-turn
-    legs: list[tuple[float, int]] = []
-    while t < t_end:
-        t += 0.5
-        for te, b in world.events_until(t):
-            for line in framer.feed(b):
-                for m in parse_buoy(line, te):
-                    if isinstance(m, AcousticEvent):
-                        tracker.process(m)
-        legs.append((t, tracker.plan.leg))
+    r = run(pts, 20.0 + duration(pts[:6], 1.0), start_delay_s=20.0)  # the second U-turn
+    tracker = r.tracker
+    legs = [(sm.t, sm.track.plan_leg if sm.track is not None else -1) for sm in r.samples]
     assert tracker.inferred, tracker.plan.events
     first = tracker.inferred[0]
     assert any("from tracker" in e for e in tracker.plan.events)
