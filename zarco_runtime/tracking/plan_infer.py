@@ -23,13 +23,17 @@ A lawnmower is looked for on a new leg between ``INFER_AFTER_S`` and
 ``INFER_WINDOW_S`` after it started (its first seconds may be the end of the
 turn): the new leg runs back along the last long leg (within
 ``ANTI_TOL_DEG``), with only short legs between.  W is its offset from that
-long leg (or, better, the spacing of the two long legs before it); the long
-leg ended where the AUV began its turn; L is that leg's length from where
-the long leg before it ended (level across), or from where the AUV set off
-from hovering.  With a short leg square to the long ones seen between (a
-spacing flown straight) one long leg measured is enough; without (a bare
-reversal, which any route may fly once) two, agreeing within
-``LENGTH_TOL``.  A new plan is returned only when it moves the next corners
+long leg (or, better, the spacing of the two long legs before it).  A
+long leg's corner is not where the AUV began its turn (it begins up to a
+turning radius before the waypoint, to come out on the next line) but where
+the turn reached: the leg's end carried on along it as far as the AUV went
+past it within ``REACH_WINDOW_S`` (the spacing leg flown square to it lies on
+the corner's line; a reversal's apex is as far out).  L is the length from
+the corner of the long leg before (level across) to that leg's, or from
+where the AUV set off from hovering.  With a short leg square to the long
+ones seen between (a spacing flown straight) one long leg measured is
+enough; without (a bare reversal, which any route may fly once) two,
+agreeing within ``LENGTH_TOL``.  A new plan is returned only when it moves the next corners
 by more than ``REPUBLISH_M``; a long leg across the survey's (longer than
 ``OFF_PLAN_SPACINGS`` spacings) clears it.
 
@@ -39,7 +43,7 @@ Pure and deterministic: no I/O, no clocks.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from zarco_runtime.tracking.ls_fit import ls_velocity
 
@@ -86,6 +90,11 @@ REPUBLISH_M = 3.0
 #: the AUV set off at most this long (s) before its first leg started: that
 #: leg's length runs from the set-off point
 SET_OFF_S = 30.0
+#: how far the AUV went on past a leg's end before coming back (its turn's
+#: reach: where the corner it turned was) is looked for over this long (s)
+#: after the leg ended, and taken at most this far (m)
+REACH_WINDOW_S = 60.0
+REACH_MAX_M = 20.0
 
 Point = tuple[float, float]
 
@@ -108,6 +117,14 @@ class Leg:
     start: Point | None = None
     #: from the first position to the last, along the line (m)
     length: float = 0.0
+    #: how far past its end (m, along it) the AUV went in the turn after it: the
+    #: corner it turned lies that far on (it began to turn before the corner)
+    reach: float = 0.0
+
+    @property
+    def corner(self) -> Point:
+        """Where the leg's line meets the next: its end carried on by its reach."""
+        return (self.end[0] + self.reach * self.ux, self.end[1] + self.reach * self.uy)
 
     @property
     def course(self) -> float:
@@ -154,6 +171,7 @@ class LawnmowerInference:
             self._cur, self._cur_c, self._recent, self._off = [], [], [], 0
             return None
         c = math.atan2(vy, vx)
+        self._reach(t, x, y)
         if self._cur:
             self._cur.append((t, x, y))
             self._cur_c.append(c)
@@ -199,6 +217,20 @@ class LawnmowerInference:
         self._rest = None
         self._recent = []
         return None
+
+    def _reach(self, t: float, x: float, y: float) -> None:
+        """Carry the reach of the legs that ended within ``REACH_WINDOW_S``
+        out to the position (x, y) (m) when it lies further on along them."""
+        legs = self.legs
+        for i in range(len(legs) - 1, -1, -1):
+            leg = legs[i]
+            if t - leg.t1 > REACH_WINDOW_S:
+                break
+            if t <= leg.t1:
+                continue
+            on = (x - leg.end[0]) * leg.ux + (y - leg.end[1]) * leg.uy
+            if leg.reach < on <= REACH_MAX_M:
+                legs[i] = replace(leg, reach=on)
 
     def _end_leg(self, points: list[tuple[float, float, float]], courses: list[float]
                  ) -> Leg | None:
@@ -282,7 +314,7 @@ class LawnmowerInference:
         length = self._long_length(k, 1 if square else 2)
         if length is None or not MIN_SPACING_M <= w <= length:
             return None
-        c1 = a.end
+        c1 = a.corner
         c2 = (c1[0] + w * sx, c1[1] + w * sy)
         pts: list[Point] = [c1, c2]
         px, py = c2
@@ -313,11 +345,12 @@ class LawnmowerInference:
             prev = (self.legs[j] if j >= 0 and _back(self.legs[j].course, leg.course)
                     and _long(self.legs[j]) else None)
             if prev is not None:
-                begin = (prev.end[0] - leg.end[0]) * leg.ux + (prev.end[1] - leg.end[1]) * leg.uy
+                pc, lc = prev.corner, leg.corner
+                begin = (pc[0] - lc[0]) * leg.ux + (pc[1] - lc[1]) * leg.uy
                 lens.append(-begin)
             elif leg.start is not None:
-                begin = ((leg.start[0] - leg.end[0]) * leg.ux
-                         + (leg.start[1] - leg.end[1]) * leg.uy)
+                lc = leg.corner
+                begin = (leg.start[0] - lc[0]) * leg.ux + (leg.start[1] - lc[1]) * leg.uy
                 lens.append(-begin)
                 break
             else:
