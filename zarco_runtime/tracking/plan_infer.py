@@ -33,9 +33,9 @@ the corner of the long leg before (level across) to that leg's, or from
 where the AUV set off from hovering.  With a short leg square to the long
 ones seen between (a spacing flown straight) one long leg measured is
 enough; without (a bare reversal, which any route may fly once) two,
-agreeing within ``LENGTH_TOL``.  A new plan is returned only when it moves the next corners
-by more than ``REPUBLISH_M``; a long leg across the survey's (longer than
-``OFF_PLAN_SPACINGS`` spacings) clears it.
+agreeing within ``LENGTH_TOL``.  A new plan is returned only when it moves
+the next corners by more than ``REPUBLISH_M``; a long leg across the
+survey's (longer than ``OFF_PLAN_SPACINGS`` spacings) clears it.
 
 Pure and deterministic: no I/O, no clocks.
 """
