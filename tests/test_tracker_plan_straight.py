@@ -22,15 +22,17 @@ def test_a_corners_leftover_turn_rate_is_set_back_on_the_plans_straight_leg(
     cases = [(speed, rate, spacing, seed) for seed in (1, 2, 3)
              for speed, rate, spacing in ((0.6, 7.5, 15.0), (0.9, 10.0, 12.0),
                                           (1.2, 8.0, 20.0))]
-    with_plan = [uturn_course_errors(*c, (5.0, 30.0), "fix.plan_straight", plan=True)
-                 for c in cases]
+    # the check on a filter fed whole cycles (as the spin check's test)
+    whole = {"half_cycles": False}
+    with_plan = [uturn_course_errors(*c, (5.0, 30.0), "fix.plan_straight", plan=True,
+                                     trk=whole) for c in cases]
     # once per leg at most (the first leg's start has no corner before it)
     assert all(n <= 2 for _, n in with_plan)
     assert 3 * sum(1 for _, n in with_plan if n >= 1) >= 2 * len(cases)
     # the filter's course on the new leg: better on the whole, never notably worse
     monkeypatch.setattr(ManeuverDetector, "plan_straight", lambda self, kf: False)
-    without = [uturn_course_errors(*c, (5.0, 30.0), "fix.plan_straight", plan=True)[0]
-               for c in cases]
+    without = [uturn_course_errors(*c, (5.0, 30.0), "fix.plan_straight", plan=True,
+                                   trk=whole)[0] for c in cases]
     gains = [b - a for (a, _), b in zip(with_plan, without, strict=True)]
     assert min(gains) >= -2.0
     assert float(np.mean(gains)) >= 3.0

@@ -104,14 +104,16 @@ def vars_of(p: LblNetworkParams) -> dict[str, Any]:
 
 def uturn_course_errors(speed: float, rate: float, spacing: float, seed: int,
                         after_s: tuple[float, float], counter: str,
-                        plan: bool = False) -> tuple[float, int]:
+                        plan: bool = False, trk: dict[str, Any] | None = None
+                        ) -> tuple[float, int]:
     """A lawnmower's U-turn (two 90° turns at ``rate`` deg/s, ``spacing`` m apart)
-    flown at ``speed`` m/s (with its plan given to the tracker when ``plan``):
-    the median error (deg) of the filter's course from ``after_s[0]`` to
-    ``after_s[1]`` s after the U-turn ends, and the tracker's ``counter``."""
+    flown at ``speed`` m/s (with its plan given to the tracker when ``plan``;
+    ``trk``: tracker settings): the median error (deg) of the filter's course
+    from ``after_s[0]`` to ``after_s[1]`` s after the U-turn ends, and the
+    tracker's ``counter``."""
     wps = [[100.0, 150.0], [220.0, 150.0], [220.0, 150.0 + spacing], [100.0, 150.0 + spacing]]
     r = run(wps, 30.0 + (240.0 + spacing) / speed + 20.0, seed=seed, speed_mps=speed,
-            turn_rate_dps=rate, start_delay_s=30.0, plan=wps if plan else None)
+            turn_rate_dps=rate, start_delay_s=30.0, plan=wps if plan else None, trk=trk)
     t_end = r.auv.turn_times()[-1] + 90.0 / rate
     errs = [abs(math.degrees(math.remainder(
         math.atan2(s.track.kf_vy_mps, s.track.kf_vx_mps) - s.truth.psi_rad, math.tau)))

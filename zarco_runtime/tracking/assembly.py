@@ -14,6 +14,9 @@
   filter's velocity, and whether they agree;
 * :meth:`FixAssembly.linearised` — the two ranges as measurement rows
   linearised at a point (an extended Kalman update in range space);
+* :meth:`FixAssembly.half_cycle` — a half cycle's sum or difference of the
+  ranges to its beacon and to the listener (:mod:`.cycles`) as a one-row EKF
+  update linearised at the prediction;
 * :meth:`FixAssembly.range_only` — one range (a cycle on the listener's own
   beacon, a cycle whose reply was not heard, or a fallback when a reply is
   doubted) as a one-row update at its emission time.
@@ -32,6 +35,7 @@ from zarco_runtime.tracking.fix import (
     CircleFix,
     CycleRanges,
     circle_fix,
+    half_cycle_measure,
     horizontal_radius,
     ls_chi2,
     ls_fix,
@@ -44,6 +48,10 @@ from zarco_runtime.tracking.imm import Imm
 from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.params import Network, TrackerParams
 
+#: a half cycle whose range combination changes less than this (m per m of
+#: the AUV's horizontal position) is not used: the beacon and the listener
+#: in line with the AUV (a difference) or on either side of it (a sum)
+HALF_CYCLE_MIN_GRADIENT = 0.2
 #: χ² by which the other beacons' ranges must prefer one mirror solution
 MIRROR_CHI2_MARGIN = 9.0
 
@@ -329,3 +337,58 @@ class FixAssembly:
         if ok:
             self.remember(idx, t_em, r, var_i)
         return RangeOnly("ok" if ok else "refused", t_em, cx, cy, r, r_l, bias, var_i, d2)
+
+    # ------------------------------------------------------------ half cycles
+
+    def half_cycle(self, kf: Filter, cyc: Cycle, bias: float) -> RangeOnly:
+        """A half cycle (:mod:`.cycles`) on beacon ``cyc.index`` as a one-row EKF
+        update of :func:`~.fix.half_cycle_measure`: without its closing ping,
+        r_i − r_L at the emission time T (less twice the beacon's range
+        ``bias``, m: a turnaround error enters it twice,
+        :mod:`.calibration`); without its opening ping, r_i at T′ − δ (where
+        the AUV heard the reply) plus r_L at the next emission T′ — the
+        update at T′ − δ, the AUV's motion over δ from the filter.  It must
+        agree well (gated at ``soft_gate_chi2``, like a fallback range): one
+        interrogation of it was taken as missed, and a false reply would make
+        one up.  Returned as a :class:`RangeOnly` whose ``r``/``r_l`` are the
+        filter's ranges after the update and (cx, cy) its position."""
+        if not kf.initialised:
+            return RangeOnly("uninitialised")
+        net, p, depth = self.net, self.p, self.depth
+        idx, lst, c = cyc.index, net.listener, net.c
+        m = half_cycle_measure(cyc, net)
+        if math.isnan(cyc.t_next):
+            # the emission time T = t^I − r_L(T)/c, r_L from the prediction
+            x, y, _, _, _ = kf.predicted(cyc.t_i)
+            t_em = cyc.t_i - range3(net, lst, x, y, depth) / c
+            x, y, _, _, _ = kf.predicted(t_em)
+            t_em = cyc.t_i - range3(net, lst, x, y, depth) / c
+            px, py, _, _, _ = kf.predicted(t_em)
+            qx, qy = px, py
+            m -= 2.0 * bias
+            sign = -1.0
+        else:
+            x, y, _, _, _ = kf.predicted(cyc.t_next)
+            t_next = cyc.t_next - range3(net, lst, x, y, depth) / c
+            x, y, _, _, _ = kf.predicted(t_next)
+            t_next = cyc.t_next - range3(net, lst, x, y, depth) / c
+            qx, qy, _, _, _ = kf.predicted(t_next)
+            t_em = t_next - net.delta
+            px, py, _, _, _ = kf.predicted(t_em)
+            sign = 1.0
+        ji = range_jacobian(net, idx, px, py, depth)
+        jl = range_jacobian(net, lst, qx, qy, depth)
+        # the listener's range moves with the same position error as the beacon's
+        row = (ji[0] + sign * jl[0], ji[1] + sign * jl[1])
+        if math.hypot(*row) < HALF_CYCLE_MIN_GRADIENT:
+            return RangeOnly("geometry")
+        h = range3(net, idx, px, py, depth) + sign * range3(net, lst, qx, qy, depth)
+        # two detections' jitter and a range error on each range
+        var = 2.0 * ((c * p.timing_sigma_s) ** 2 + p.range_sigma_m ** 2) * self.var_scale
+        kf.predict(t_em)
+        ok, d2 = kf.update([row], [m - h + row[0] * px + row[1] * py], [var],
+                           p.soft_gate_chi2, p.soft_gate_chi2)
+        fx, fy = kf.x[0], kf.x[1]
+        return RangeOnly("ok" if ok else "refused", t_em, fx, fy,
+                         range3(net, idx, fx, fy, depth), range3(net, lst, fx, fy, depth),
+                         bias, var, d2)

@@ -31,6 +31,20 @@ Rules, all on the listener's UTC times (s):
   missed closing ping then shows as ``missed_ping`` instead of closing the
   cycle on the interrogation after it (a period one cycle too long).
 
+Half cycles (:attr:`CycleAssembler.partial`, drained by the caller after each
+:meth:`~CycleAssembler.push`): a missed interrogation costs two cycles — the
+one it would have closed and the one it would have opened — yet each still
+holds one range combination:
+
+* *no closing ping* (an open cycle dropped ``missed_ping``, ``sequence`` or
+  ``superseded``): (t^I, t^R) give r_i − r_L = c(t^R − t^I − τ_i) − d_i
+  (``t_next`` NaN; nothing on the listener's own beacon, where it is 0);
+* *no opening ping* (a reply outside every window, followed by the
+  interrogation of its beacon's successor): (t^R, t^I_{j+1}) give
+  r_i + r_L = c(t^I_{j+1} − t^R − δ) + d_i (``t_i`` NaN; the turnaround
+  cancels), within ±2(``n_sigma`` σ̂ + ``margin_m``) of the predicted sum
+  while tracking.
+
 Every event that is not used is counted in :attr:`CycleAssembler.dropped` with
 a reason; every cycle lost in :attr:`CycleAssembler.cycles_dropped`.  Reasons:
 
@@ -80,6 +94,7 @@ class Cycle:
     of the AUV's next interrogation (addressed to ``next_beacon``) at the
     listener (``t_r`` NaN when the reply was not heard: the cycle then gives
     the range to the beacon only); ``t``: runtime time of the closing event.
+    A half cycle (:attr:`CycleAssembler.partial`) has ``t_next`` or ``t_i`` NaN.
     """
 
     t: float
@@ -94,9 +109,10 @@ class Cycle:
 class CycleAssembler:
     """Stateful cycle assembly; feed events in arrival order with :meth:`push`."""
 
-    __slots__ = ("_cands", "_last_utc", "_open", "_prev_i", "_recent", "_seq_next", "accepted",
-                 "cycles", "cycles_dropped", "cycles_no_reply", "dropped", "margin_m",
-                 "max_range_m", "n_sigma", "net", "predictor", "r_min")
+    __slots__ = ("_cands", "_last_utc", "_open", "_orphan", "_prev_i", "_recent", "_seq_next",
+                 "accepted", "cycles", "cycles_dropped", "cycles_no_reply", "cycles_partial",
+                 "dropped", "margin_m", "max_range_m", "n_sigma", "net", "partial", "predictor",
+                 "r_min")
 
     def __init__(self, net: Network, auv_depth_m: float, max_range_m: float,
                  sequence: list[int] | None = None,
@@ -120,6 +136,11 @@ class CycleAssembler:
         self.cycles = 0
         #: cycles made of two interrogations whose reply was not heard (in ``cycles``)
         self.cycles_no_reply = 0
+        #: half cycles made (module docstring), and those not yet taken
+        self.cycles_partial = 0
+        self.partial: list[Cycle] = []
+        # the last reply heard outside every window: (utc, network index), or None
+        self._orphan: tuple[float, int] | None = None
         # the last interrogation heard: (utc, network index, answered)
         self._prev_i: tuple[float, int, bool] | None = None
         #: events that passed the validity, duplicate and order checks
@@ -136,6 +157,7 @@ class CycleAssembler:
         with ``clock``, also the order and duplicate memory (after a time jump)."""
         self._cands.clear()
         self._open = None
+        self._orphan = None
         self._prev_i = None
         if clock:
             self._recent.clear()
@@ -176,8 +198,48 @@ class CycleAssembler:
         self._expire(utc)
         if kind == "I":
             return self._on_interrogation(ev.t, utc, idx)
-        self._on_reply(utc, idx)
+        self._on_reply(ev.t, utc, idx)
         return None
+
+    def take_partial(self) -> list[Cycle]:
+        """The half cycles made since the last call, oldest first (by reply)."""
+        got, self.partial = self.partial, []
+        got.sort(key=lambda cyc: cyc.t_r)
+        return got
+
+    def _half_closing(self, t: float, idx: int, t_i: float, t_r: float, nxt: int) -> None:
+        """An answered interrogation of ``idx`` whose closing ping was missed."""
+        if idx != self.net.listener:
+            self.cycles_partial += 1
+            self.partial.append(Cycle(t, idx, self.net.ids[idx], t_i, t_r, math.nan,
+                                      self.net.ids[nxt]))
+
+    def _half_opening(self, t: float, utc: float, idx: int) -> None:
+        """The interrogation of ``idx`` heard at ``utc`` after a reply outside
+        every window: a half cycle when it is the replying beacon's successor
+        within the window of the sum of ranges."""
+        orphan, self._orphan = self._orphan, None
+        if orphan is None:
+            return
+        t_r, ridx = orphan
+        net = self.net
+        if ridx == idx and net.n > 1:
+            return
+        if self._seq_next is not None and self._seq_next.get(net.ids[ridx]) != net.ids[idx]:
+            return
+        c = net.c
+        m = c * (utc - t_r - net.delta) + net.d[ridx]  # r_i + r_L (m)
+        if not net.d[ridx] - c * net.tol <= m <= 2.0 * self.max_range_m + c * net.tol:
+            return
+        if self.predictor is not None:
+            pi = self.predictor(ridx, t_r)
+            pl = self.predictor(net.listener, utc)
+            if pi is not None and pl is not None:
+                half = 2.0 * (self.n_sigma * max(pi[1], pl[1]) + self.margin_m)
+                if abs(m - pi[0] - pl[0]) > half:
+                    return
+        self.cycles_partial += 1
+        self.partial.append(Cycle(t, ridx, net.ids[ridx], math.nan, t_r, utc, net.ids[idx]))
 
     def _expire(self, utc: float) -> None:
         """Drop unanswered interrogations whose every reply window has passed."""
@@ -191,6 +253,9 @@ class CycleAssembler:
         cycle = None
         op = self._open
         prev = self._prev_i
+        if self._orphan is not None and (prev is None or prev[1] != idx
+                                         or utc - prev[0] >= MULTIPATH_I_S):
+            self._half_opening(t, utc, idx)
         # a late copy of the interrogation just heard is not the AUV's next ping
         if prev is None or prev[1] != idx or utc - prev[0] >= MULTIPATH_I_S:
             self._prev_i = (utc, idx, False)
@@ -214,9 +279,11 @@ class CycleAssembler:
                 # too late, or the AUV cannot ping the same beacon twice in a row:
                 # the pings between were missed
                 self.cycles_dropped["missed_ping"] += 1
+                self._half_closing(t, oidx, t_i, t_r, idx)
             elif (self._seq_next is not None
                   and self._seq_next.get(net.ids[oidx]) != net.ids[idx]):
                 self.cycles_dropped["sequence"] += 1
+                self._half_closing(t, oidx, t_i, t_r, idx)
             else:
                 self.cycles += 1
                 cycle = Cycle(t, oidx, net.ids[oidx], t_i, t_r, utc, net.ids[idx])
@@ -256,7 +323,7 @@ class CycleAssembler:
             self.dropped["no_reply"] += 1
         cands.append((utc, idx))
 
-    def _on_reply(self, utc: float, idx: int) -> None:
+    def _on_reply(self, t: float, utc: float, idx: int) -> None:
         net = self.net
         lo = net.reply_lo[idx]
         hi = net.reply_hi[idx]
@@ -280,6 +347,8 @@ class CycleAssembler:
                     self.dropped["late_arrival"] += 1
                 if self._open is not None:
                     self.cycles_dropped["superseded"] += 1
+                    oidx, o_i, o_r = self._open[:3]
+                    self._half_closing(t, oidx, o_i, o_r, idx)
                 c = net.c
                 base = net.tau[idx] + net.delta
                 p_lo = phys_lo = base + 2.0 * self.r_min[idx] / c - net.tol
@@ -299,3 +368,10 @@ class CycleAssembler:
             self.dropped["late_arrival"] += 1
         else:
             self.dropped["gate"] += 1
+            # its interrogation may have been missed (the last one heard was to
+            # the beacon before it): with the next one, a half cycle
+            prev = self._prev_i
+            seq = self._seq_next
+            if prev is not None and (prev[1] != idx if seq is None
+                                     else seq.get(net.ids[prev[1]]) == net.ids[idx]):
+                self._orphan = (utc, idx)

@@ -83,6 +83,22 @@ def cycle_ranges(cycle: Cycle, net: Network) -> CycleRanges:
     return CycleRanges(i, r_i, r_l, cycle.t_i - r_l / c, p)
 
 
+def half_cycle_measure(cycle: Cycle, net: Network) -> float:
+    """The range combination (m) a half cycle (:mod:`.cycles`) measures.
+
+    Without its closing ping (``t_next`` NaN), from the emission point at T:
+    r_i − r_L = c(t^R − t^I − τ_i) − d_i (exact for a moving AUV: both ranges
+    are from where it pinged).  Without its opening ping (``t_i`` NaN):
+    r_i′ + r_L′ = c(t^I_{j+1} − t^R − δ) + d_i, r_i′ the range from beacon i to
+    where the AUV heard the reply (at T′ − δ), r_L′ the listener's range at
+    the next emission T′ (the turnaround cancels)."""
+    i = cycle.index
+    c = net.c
+    if math.isnan(cycle.t_next):
+        return c * (cycle.t_r - cycle.t_i - net.tau[i]) - net.d[i]
+    return c * (cycle.t_next - cycle.t_r - net.delta) + net.d[i]
+
+
 def range_rate(net: Network, index: int, x: float, y: float, z: float, vx: float,
                vy: float) -> float:
     """d/dt of the 3-D range from beacon ``index`` to an AUV at (x, y, z) moving

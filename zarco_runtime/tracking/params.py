@@ -54,6 +54,8 @@ class TrackerParams:
                                 "(sound speed, residual motion bias)", min=0.0, max=100.0)
     motion_correction: bool = spec(True, "", "correct the v·P/2 motion bias of the ranges "
                                    "with the filter's velocity")
+    half_cycles: bool = spec(True, "", "a cycle that lost one of its interrogations still "
+                             "updates the filter with its range sum or difference (one row)")
     ls_window_s: float = spec(8.0, "s", "a fix combines the ranges to every beacon heard "
                               "within this long (brought to its emission time along the "
                               "filter's velocity)", min=0.0, max=120.0)

@@ -20,7 +20,10 @@ declaration.
   own beacon, and cycles whose reply was missed (two interrogations), give one
   range and are applied as a range-only update; a cycle whose ranges disagree
   with the other beacons' is tried on its interrogation-only range alone (the
-  reply may be a multipath or false one: ``reply_refused``).  Updates are made
+  reply may be a multipath or false one: ``reply_refused``).  A missed
+  interrogation leaves two half cycles (:mod:`.cycles`), each one range
+  combination applied as a one-row update (``half_cycles``; not fed to the
+  calibration).  Updates are made
   in range space (the two ranges linearised at the chosen solution, or at the
   prediction when both solutions are plausible near a baseline or the circles
   miss each other), so a fix with poor geometry only informs the filter along
@@ -71,7 +74,9 @@ Counters (:meth:`AuvTracker.counters`): ``event.<reason>`` for dropped events
 ``fix.<reason>`` for cycles that gave no accepted update (``impossible_timing``,
 ``depth``, ``no_intersection``, ``innovation``, ``range_only_uninitialised``,
 ``init_pending``, ``inconsistent``: its ranges disagree with the other
-beacons') and for tracker events (``maneuver``, ``reacquired``, ``reanchored``,
+beacons'; ``half_cycle_refused``, ``half_cycle_uninitialised``,
+``half_cycle_geometry``: a half cycle whose combination barely depends on the
+position) and for tracker events (``maneuver``, ``reacquired``, ``reanchored``,
 ``clock_resync``, ``reply_refused``, ``spin``, ``plan_straight``, ``mirror_prior``:
 the prior resolved the mirror of beacons in a line, :mod:`.acquire`), ``internal``
 for any unexpected exception (never raised: the tests assert it stays absent).
@@ -232,6 +237,8 @@ class AuvTracker:
             cycle = self.cycles.push(ev)
             if self.cycles.accepted != before:
                 self.clock.update(ev.t, ev.t - ev.utc_epoch_s)
+            for half in self.cycles.take_partial():
+                self._on_half_cycle(half, out)
             if cycle is not None:
                 self._on_cycle(cycle, out)
             self._check_lost(getattr(ev, "t", None), out)
@@ -582,6 +589,30 @@ class AuvTracker:
         var0 = res.var / self.noise.scale
         self._calibrate(cyc, res.t_em, idx, res.bias, False, var0, var0)
         return True
+
+    def _on_half_cycle(self, cyc: Cycle, out: Out) -> None:
+        """A cycle that lost one of its interrogations (:mod:`.cycles`): its
+        range sum or difference as a one-row update
+        (:meth:`.assembly.FixAssembly.half_cycle`), published as a range-only
+        fix; not used for the calibration."""
+        if not self.p.half_cycles:
+            return
+        self.asm.var_scale = self.noise.scale
+        bias = self.cal.bias(cyc.index) if self.cal is not None else 0.0
+        res = self.asm.half_cycle(self.kf, cyc, bias)
+        if res.status in ("uninitialised", "geometry"):
+            self.dropped[f"half_cycle_{res.status}"] += 1
+            return
+        ok = res.status == "ok"
+        fix = AuvFix(cyc.t, res.t_em, cyc.beacon, res.cx, res.cy, res.cx, res.cy, res.r,
+                     res.r_l, res.bias, ok, True)
+        self.last_fix = fix
+        out.append(fix)
+        if not ok:
+            self.dropped["half_cycle_refused"] += 1
+            return
+        self._last_range_only = True
+        self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out, position=False)
 
     def _observe_noise(self, d2: float, rows: int) -> None:
         """With two beacons (no joint fix to measure the noise by), an accepted
