@@ -8,15 +8,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from tracker_rig import run
 
 from drivers.sim.acoustics import AcousticWorld, LblParams
 from drivers.sim.auv import Auv, AuvParams
-from zarco_core.auv_messages import AcousticEvent
+from zarco_core.auv_messages import AcousticEvent, AuvFix, AuvTrack
 from zarco_core.lbl import LblNetworkParams
 from zarco_runtime.tracking.cycles import Cycle, CycleAssembler
 from zarco_runtime.tracking.fix import half_cycle_measure
-from zarco_runtime.tracking.params import Network
+from zarco_runtime.tracking.params import Network, TrackerParams
+from zarco_runtime.tracking.tracker import AuvTracker
 
 EPOCH = 1_780_308_000.0  # 2026-06-01T10:00:00Z
 DEPTH = 10.0
@@ -135,6 +137,34 @@ def test_half_cycles_of_a_turning_auv_measure_its_true_ranges() -> None:
                                           net.depth[h.index]))
                     + math.dist((p.x_m, p.y_m, p.depth_m), lst))
         assert abs(half_cycle_measure(h, net) - want) < 1e-3, h
+
+
+def test_one_event_publishes_one_track_whatever_updates_it_made() -> None:
+    """An interrogation after a missed one closes two half cycles and may
+    close a cycle too: three updates, one track (the last state), every
+    fix published."""
+    lp = LblParams(**EXACT)  # type: ignore[arg-type]
+    auv = Auv(AuvParams(waypoints=[[100.0, 150.0], [250.0, 150.0]], depth_m=DEPTH))
+    world = AcousticWorld(lp, auv, 5, start_utc_epoch_s=EPOCH)
+    tracker = AuvTracker(TrackerParams(network=lp.network(), auv_depth_m=DEPTH,
+                                       prior_north_m=100.0, prior_east_m=150.0))
+    n_i = 0
+    fixes = 0
+    updates = 0
+    for ev in world.events_exact_until(150.0):
+        if ev.kind == "I":
+            n_i += 1
+            if n_i % 4 == 0:
+                continue
+        before = tracker.fixes_accepted
+        out = tracker.process(ev)
+        fixes += sum(isinstance(m, AuvFix) for m in out)
+        updates += tracker.fixes_accepted - before
+        tracks = [m for m in out if isinstance(m, AuvTrack)]
+        assert len(tracks) <= 1
+        if tracker.fixes_accepted > before:
+            assert tracks and tracks[-1].t0_utc_s == pytest.approx(tracker.kf.t)
+    assert tracker.cycles.cycles_partial >= 20 and updates > fixes // 2
 
 
 def _uturn_errors(seed: int, half: bool) -> tuple[float, int]:

@@ -227,8 +227,9 @@ class AuvTracker:
 
     def process(self, ev: Any) -> Out:
         """Process one acoustic event; every message it produced (an AuvFix per
-        cycle that reached the fix stage, an AuvTrack per accepted update or
-        lost declaration), in order."""
+        cycle or half cycle that reached the fix stage, then the AuvTrack of
+        the event's last accepted update or its lost declaration), in order:
+        one track per event at most, whatever updates it made."""
         out: Out = []
         try:
             if not self._clock_ok(ev):
@@ -244,6 +245,11 @@ class AuvTracker:
             self._check_lost(getattr(ev, "t", None), out)
         except Exception:  # the tracker must never take the runtime down
             self.dropped["internal"] += 1
+        tracks = [m for m in out if isinstance(m, AuvTrack)]
+        if len(tracks) > 1:
+            # a missed interrogation's half cycles and the cycle the same event
+            # closes: the last state stands for the event
+            out = [m for m in out if not isinstance(m, AuvTrack) or m is tracks[-1]]
         return out
 
     def on_status(self, st: BuoyStatus) -> None:
