@@ -93,6 +93,21 @@ def test_the_listeners_own_beacon_and_a_stray_reply_make_no_half_cycle() -> None
     assert asm.take_partial() == []
 
 
+def _every_fourth_interrogation_missed(world: AcousticWorld, until_s: float
+                                       ) -> list[AcousticEvent]:
+    """The world's exact events up to ``until_s`` (sim s), every fourth
+    interrogation left out (the buoy missed it)."""
+    out = []
+    n_i = 0
+    for ev in world.events_exact_until(until_s):
+        if ev.kind == "I":
+            n_i += 1
+            if n_i % 4 == 0:
+                continue
+        out.append(ev)
+    return out
+
+
 def test_half_cycles_of_a_turning_auv_measure_its_true_ranges() -> None:
     """The simulator's exact timing, every fourth interrogation removed: each
     half cycle's measure equals the true combination — r_i − r_L from where the
@@ -104,12 +119,7 @@ def test_half_cycles_of_a_turning_auv_measure_its_true_ranges() -> None:
     net = Network.from_params(lp.network(), 0.003)
     asm = CycleAssembler(net, DEPTH, 3000.0, sequence=list(net.ids))
     halves: list[Cycle] = []
-    n_i = 0
-    for ev in world.events_exact_until(200.0):
-        if ev.kind == "I":
-            n_i += 1
-            if n_i % 4 == 0:
-                continue
+    for ev in _every_fourth_interrogation_missed(world, 200.0):
         asm.push(ev)
         halves += asm.take_partial()
     kinds = [math.isnan(h.t_next) for h in halves]
@@ -148,14 +158,9 @@ def test_one_event_publishes_one_track_whatever_updates_it_made() -> None:
     world = AcousticWorld(lp, auv, 5, start_utc_epoch_s=EPOCH)
     tracker = AuvTracker(TrackerParams(network=lp.network(), auv_depth_m=DEPTH,
                                        prior_north_m=100.0, prior_east_m=150.0))
-    n_i = 0
     fixes = 0
     updates = 0
-    for ev in world.events_exact_until(150.0):
-        if ev.kind == "I":
-            n_i += 1
-            if n_i % 4 == 0:
-                continue
+    for ev in _every_fourth_interrogation_missed(world, 150.0):
         before = tracker.fixes_accepted
         out = tracker.process(ev)
         fixes += sum(isinstance(m, AuvFix) for m in out)

@@ -92,7 +92,7 @@ from typing import Any
 
 from zarco_core.auv_messages import AuvFix, AuvTrack, BuoyStatus, TrackFlags
 from zarco_runtime.tracking.acquire import Acquisition, InitEntry
-from zarco_runtime.tracking.assembly import FixAssembly, Prediction
+from zarco_runtime.tracking.assembly import FixAssembly, Prediction, RangeOnly
 from zarco_runtime.tracking.calibration import SoundSpeedEstimator
 from zarco_runtime.tracking.cycles import Cycle, CycleAssembler
 from zarco_runtime.tracking.fix import CircleFix, CycleRanges, cycle_ranges, range_variances
@@ -578,22 +578,29 @@ class AuvTracker:
                 self.dropped["range_only_uninitialised" if res.status == "uninitialised"
                              else "depth"] += 1
             return False
-        ok = res.status == "ok"
-        if not ok and fallback:
+        if res.status != "ok" and fallback:
             return False
-        fix = AuvFix(cyc.t, res.t_em, cyc.beacon, res.cx, res.cy, res.cx, res.cy, res.r,
-                     res.r_l, res.bias, ok, True)
-        self.last_fix = fix
-        out.append(fix)
-        if not ok:
-            self.dropped["innovation"] += 1
+        if not self._one_row_fix(cyc, res, "innovation", out):
             return False
-        self._last_range_only = True
         if self.net.n < 3:
             self._observe_noise(res.d2, 1)
         self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out, position=False)
         var0 = res.var / self.noise.scale
         self._calibrate(cyc, res.t_em, idx, res.bias, False, var0, var0)
+        return True
+
+    def _one_row_fix(self, cyc: Cycle, res: RangeOnly, refused: str, out: Out) -> bool:
+        """Publish a one-row update (a range, a half cycle) as a range-only fix;
+        True when the filter accepted it, else counted as ``refused``."""
+        ok = res.status == "ok"
+        fix = AuvFix(cyc.t, res.t_em, cyc.beacon, res.cx, res.cy, res.cx, res.cy, res.r,
+                     res.r_l, res.bias, ok, True)
+        self.last_fix = fix
+        out.append(fix)
+        if not ok:
+            self.dropped[refused] += 1
+            return False
+        self._last_range_only = True
         return True
 
     def _on_half_cycle(self, cyc: Cycle, out: Out) -> None:
@@ -609,16 +616,8 @@ class AuvTracker:
         if res.status in ("uninitialised", "geometry"):
             self.dropped[f"half_cycle_{res.status}"] += 1
             return
-        ok = res.status == "ok"
-        fix = AuvFix(cyc.t, res.t_em, cyc.beacon, res.cx, res.cy, res.cx, res.cy, res.r,
-                     res.r_l, res.bias, ok, True)
-        self.last_fix = fix
-        out.append(fix)
-        if not ok:
-            self.dropped["half_cycle_refused"] += 1
-            return
-        self._last_range_only = True
-        self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out, position=False)
+        if self._one_row_fix(cyc, res, "half_cycle_refused", out):
+            self._accepted(res.t_em, cyc.t, res.cx, res.cy, res.var, out, position=False)
 
     def _observe_noise(self, d2: float, rows: int) -> None:
         """With two beacons (no joint fix to measure the noise by), an accepted
