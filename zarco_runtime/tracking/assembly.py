@@ -280,6 +280,17 @@ class FixAssembly:
                 return (fx, fy, *c2), False
         return (fx, fy, *c2), True
 
+    def _heard(self, kf: Filter, t_heard: float) -> tuple[float, float]:
+        """The emission time (UTC s) of an interrogation the listener heard at
+        ``t_heard`` and the listener's range (m) then, from the filter's
+        prediction (T = t − r_L(T)/c, two passes)."""
+        net, lst, c = self.net, self.net.listener, self.net.c
+        x, y, _, _, _ = kf.predicted(t_heard)
+        r_l = range3(net, lst, x, y, self.depth)
+        x, y, _, _, _ = kf.predicted(t_heard - r_l / c)
+        r_l = range3(net, lst, x, y, self.depth)
+        return t_heard - r_l / c, r_l
+
     # ------------------------------------------------------------ one range
 
     def range_only(self, kf: Filter, cyc: Cycle, idx: int, r: float,
@@ -301,11 +312,7 @@ class FixAssembly:
             """Emission time and the listener's range for a range r_b to idx."""
             if idx == lst:
                 return cyc.t_i - r_b / c, r_b
-            x, y, _, _, _ = kf.predicted(cyc.t_i)
-            r_l = range3(net, lst, x, y, depth)
-            x, y, _, _, _ = kf.predicted(cyc.t_i - r_l / c)
-            r_l = range3(net, lst, x, y, depth)
-            return cyc.t_i - r_l / c, r_l
+            return self._heard(kf, cyc.t_i)
 
         t_em, r_l = emission(r)
         px, py, _, _, _ = kf.predicted(t_em)
@@ -358,20 +365,13 @@ class FixAssembly:
         idx, lst, c = cyc.index, net.listener, net.c
         m = half_cycle_measure(cyc, net)
         if math.isnan(cyc.t_next):
-            # the emission time T = t^I − r_L(T)/c, r_L from the prediction
-            x, y, _, _, _ = kf.predicted(cyc.t_i)
-            t_em = cyc.t_i - range3(net, lst, x, y, depth) / c
-            x, y, _, _, _ = kf.predicted(t_em)
-            t_em = cyc.t_i - range3(net, lst, x, y, depth) / c
+            t_em = self._heard(kf, cyc.t_i)[0]
             px, py, _, _, _ = kf.predicted(t_em)
             qx, qy = px, py
             m -= 2.0 * bias
             sign = -1.0
         else:
-            x, y, _, _, _ = kf.predicted(cyc.t_next)
-            t_next = cyc.t_next - range3(net, lst, x, y, depth) / c
-            x, y, _, _, _ = kf.predicted(t_next)
-            t_next = cyc.t_next - range3(net, lst, x, y, depth) / c
+            t_next = self._heard(kf, cyc.t_next)[0]
             qx, qy, _, _, _ = kf.predicted(t_next)
             t_em = t_next - net.delta
             px, py, _, _, _ = kf.predicted(t_em)
