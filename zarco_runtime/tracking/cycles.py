@@ -253,11 +253,10 @@ class CycleAssembler:
         cycle = None
         op = self._open
         prev = self._prev_i
-        if self._orphan is not None and (prev is None or prev[1] != idx
-                                         or utc - prev[0] >= MULTIPATH_I_S):
-            self._half_opening(t, utc, idx)
         # a late copy of the interrogation just heard is not the AUV's next ping
         if prev is None or prev[1] != idx or utc - prev[0] >= MULTIPATH_I_S:
+            if self._orphan is not None:
+                self._half_opening(t, utc, idx)
             self._prev_i = (utc, idx, False)
             if op is None and prev is not None and not prev[2]:
                 cycle = self._no_reply_cycle(t, utc, idx, prev[0], prev[1])
