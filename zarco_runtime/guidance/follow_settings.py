@@ -32,7 +32,9 @@ class FollowSettings:
     min_speed_mps: float = spec(0.3, "m/s", "slowest speed reference while following (ahead "
                                 "of the AUV): enough to steer across a current",
                                 min=0.0, max=3.0)
-    max_speed_mps: float = spec(1.5, "m/s", "fastest speed reference while catching up",
+    max_speed_mps: float = spec(2.0, "m/s", "fastest speed reference while catching up "
+                                "(above the boat's top speed: behind a fast AUV the boat "
+                                "closes at full thrust)",
                                 min=0.1, max=3.0)
     lookahead_m: float = spec(3.0, "m", "line-of-sight look-ahead Δ: the ASV converges "
                               "onto the AUV's track at atan(offset/Δ); shorter turns the "
