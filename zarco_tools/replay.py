@@ -120,10 +120,11 @@ class ReplayStats:
 class Progress:
     """Progress on stderr: rewritten in place on a terminal, every 5 s otherwise."""
 
-    def __init__(self, total_lines: int, duration_s: float, stream: Any = sys.stderr) -> None:
+    def __init__(self, total_lines: int, duration_s: float, stream: Any = None) -> None:
         self.total = total_lines
         self.duration_s = duration_s
-        self.stream = stream
+        # the stderr of when it runs, not of when the module was imported
+        self.stream = stream = stream if stream is not None else sys.stderr
         self.tty = bool(getattr(stream, "isatty", lambda: False)())
         self.last = -1e9
 

@@ -402,8 +402,9 @@ def run_scenario(scn: Scenario, progress: ProgressFn | None = None,
 class StatusLine:
     """A running status on stderr: rewritten in place on a terminal, sparse otherwise."""
 
-    def __init__(self, stream: Any = sys.stderr) -> None:
-        self.stream = stream
+    def __init__(self, stream: Any = None) -> None:
+        # the stderr of when it runs, not of when the module was imported
+        self.stream = stream = stream if stream is not None else sys.stderr
         self.tty = bool(getattr(stream, "isatty", lambda: False)())
         self.w0 = time.perf_counter()
         self.last = -1e9

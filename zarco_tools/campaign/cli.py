@@ -55,10 +55,11 @@ def _seed(text: str) -> int:
 class Progress:
     """One line per finished mission on ``stream``: count, rate, time left."""
 
-    def __init__(self, total: int, done: int, stream: TextIO = sys.stderr) -> None:
+    def __init__(self, total: int, done: int, stream: TextIO | None = None) -> None:
         self.total, self.done0, self.n = total, done, done
         self.w0 = time.perf_counter()
-        self.stream = stream
+        # the stderr of when it runs, not of when the module was imported
+        self.stream = stream if stream is not None else sys.stderr
 
     def __call__(self, rec: dict[str, Any]) -> None:
         self.n += 1
