@@ -60,8 +60,9 @@ def test_behind_it_speeds_up_ahead_it_slows_down() -> None:
     assert g.update(tr, tr.t, -30.0, 0.0).speed_ref_mps == cfg.max_speed_mps
     g2 = FollowGuidance(cfg)
     _moving(g2, tr)
-    ahead = g2.update(tr, tr.t, 2.0, 0.0)
-    assert ahead.speed_ref_mps == pytest.approx(0.8 - 2.0 / cfg.catchup_tau_s)
+    ahead = g2.update(tr, tr.t, 1.0, 0.0)
+    assert cfg.min_speed_mps < 0.8 - 1.0 / cfg.catchup_tau_s
+    assert ahead.speed_ref_mps == pytest.approx(0.8 - 1.0 / cfg.catchup_tau_s)
     # far ahead: as slow as steering allows, and no reverse thrust
     far = g2.update(tr, tr.t, 20.0, 0.0)
     assert far.speed_ref_mps == cfg.min_speed_mps and far.along_error_m == 0.0

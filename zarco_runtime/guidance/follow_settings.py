@@ -44,8 +44,9 @@ class FollowSettings:
                                     "faster than this (the estimate's jitter is not "
                                     "steered; slower lets the boat trail turns)",
                                     min=1.0, max=360.0)
-    catchup_tau_s: float = spec(5.0, "s", "time constant of closing an along-track gap "
-                                "(speed reference v_AUV + gap/τ)", min=0.5, max=600.0)
+    catchup_tau_s: float = spec(3.0, "s", "time constant of closing an along-track gap "
+                                "(speed reference v_AUV + gap/τ; a metre behind is a "
+                                "third of a metre per second more)", min=0.5, max=600.0)
     target_tau_s: float = spec(3.0, "s", "the AUV's position is low-passed over this about "
                                "its velocity (fixes move the aim smoothly; about three "
                                "fixes at the usual 1 s cycle)", min=0.01, max=60.0)
