@@ -32,6 +32,7 @@ from typing import IO, Any
 
 from drivers.nmea import NmeaError, split_checked
 from zarco_core.paths import PathError, readable_file
+from zarco_tools.status_line import TtyLine
 
 #: sentence type → index of its UTC time field
 TIME_FIELD = {"GGA": 0, "RMC": 0, "ZDA": 0, "GNS": 0, "GLL": 4}
@@ -123,26 +124,17 @@ class Progress:
     def __init__(self, total_lines: int, duration_s: float, stream: Any = None) -> None:
         self.total = total_lines
         self.duration_s = duration_s
-        # the stderr of when it runs, not of when the module was imported
-        self.stream = stream = stream if stream is not None else sys.stderr
-        self.tty = bool(getattr(stream, "isatty", lambda: False)())
-        self.last = -1e9
+        self.line = TtyLine(stream)
 
     def __call__(self, done: int, rec_s: float, force: bool = False) -> None:
-        now = time.monotonic()
-        if not force and now - self.last < (0.2 if self.tty else 5.0):
+        if not self.line.due(force):
             return
-        self.last = now
         pct = 100.0 * done / self.total if self.total else 100.0
-        msg = (f"replay: {done}/{self.total} lines ({pct:5.1f} %)  "
-               f"recorded time {rec_s:7.1f}/{self.duration_s:.1f} s")
-        self.stream.write(("\r" + msg) if self.tty else (msg + "\n"))
-        self.stream.flush()
+        self.line.write(f"replay: {done}/{self.total} lines ({pct:5.1f} %)  "
+                        f"recorded time {rec_s:7.1f}/{self.duration_s:.1f} s")
 
     def close(self) -> None:
-        if self.tty:
-            self.stream.write("\n")
-            self.stream.flush()
+        self.line.end("\n")
 
 
 def play(schedule: Schedule, write: Callable[[bytes], object], rate: float = 1.0,

@@ -12,7 +12,6 @@ from __future__ import annotations
 import asyncio
 import math
 import signal
-import sys
 import time
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
@@ -45,6 +44,7 @@ from zarco_tools.follow_report import finite_or_none, follow_figures
 from zarco_tools.hold_report import hold_figures
 from zarco_tools.scenario import Scenario
 from zarco_tools.sim_report import TrackLog, line_figures
+from zarco_tools.status_line import TtyLine
 
 ProgressFn = Callable[[float, float, int, int], None]
 
@@ -403,27 +403,15 @@ class StatusLine:
     """A running status on stderr: rewritten in place on a terminal, sparse otherwise."""
 
     def __init__(self, stream: Any = None) -> None:
-        # the stderr of when it runs, not of when the module was imported
-        self.stream = stream = stream if stream is not None else sys.stderr
-        self.tty = bool(getattr(stream, "isatty", lambda: False)())
+        self.line = TtyLine(stream, time.perf_counter)
         self.w0 = time.perf_counter()
-        self.last = -1e9
 
     def __call__(self, t: float, limit: float, leg: int, legs: int) -> None:
-        now = time.perf_counter()
-        if now - self.last < (0.2 if self.tty else 5.0):
+        if not self.line.due():
             return
-        self.last = now
-        wall = now - self.w0
+        wall = self.line.last - self.w0
         speed = t / wall if wall > 0 else 0.0
-        msg = f"sim {t:7.1f} s  leg {leg + 1}/{legs}  {speed:6.0f}× real time"
-        if self.tty:
-            self.stream.write("\r" + msg)
-        else:
-            self.stream.write(msg + "\n")
-        self.stream.flush()
+        self.line.write(f"sim {t:7.1f} s  leg {leg + 1}/{legs}  {speed:6.0f}× real time")
 
     def close(self) -> None:
-        if self.tty:
-            self.stream.write("\r" + " " * 60 + "\r")
-            self.stream.flush()
+        self.line.end("\r" + " " * 60 + "\r")
