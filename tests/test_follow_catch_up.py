@@ -11,6 +11,7 @@ current), within the 5 % a boat steering and fighting the disturbance loses.
 
 from __future__ import annotations
 
+import bisect
 import math
 from pathlib import Path
 
@@ -40,8 +41,8 @@ def test_well_behind_a_fast_auv_the_boat_goes_at_its_top_speed() -> None:
     # towards the AUV and up to speed) while the boat is more than 6 m behind
     speeds = []
     for i, t in enumerate(log.t):
-        j = next((k for k in range(i, len(log.t)) if log.t[k] >= t + 5.0), None)
-        if t < acquired + 15.0 or j is None:
+        j = bisect.bisect_left(log.t, t + 5.0)
+        if t < acquired + 15.0 or j == len(log.t):
             continue
         gap = math.hypot(auv[j][1] - log.x[j], auv[j][2] - log.y[j])
         if gap <= 6.0:
