@@ -11,6 +11,8 @@ import pytest
 from zarco_core.auv_messages import AuvPlan, AuvTrack, TrackFlags
 from zarco_runtime.guidance.follow import (
     FACE_COURSE_MPS,
+    PLAN_SETTLE_CROSS_M,
+    PLAN_SETTLE_MAX_S,
     FollowGuidance,
     FollowSettings,
     target_now,
@@ -422,3 +424,30 @@ def test_a_corner_of_a_guessed_plan_is_taken_once_the_auv_turns_there() -> None:
                                   t=101.0, t0=101.0)
     guessed.update(turning, 101.0, 96.5, 0.0)
     assert guessed.target is not None and guessed.target.source == "plan"
+
+
+def test_past_a_corner_the_plan_is_followed_until_the_filter_is_on_the_new_leg() -> None:
+    """After a corner of its plan the filter takes tens of seconds to settle on
+    the new leg's course: the boat follows the plan's target past the corner's
+    zone while the filter's course is more than ``PLAN_SETTLE_DEG`` off the
+    leg's, up to ``PLAN_SETTLE_MAX_S`` of progress, then the filter; at once
+    when the filter, off the leg, goes further off it (an AUV leaving its
+    plan)."""
+    plan = ((0.0, 0.0), (100.0, 0.0), (100.0, 200.0))  # north, then east
+    side = PLAN_SETTLE_CROSS_M + 0.5  # metres to starboard of the leg (south)
+    for past, off_deg, south, followed in (
+            (40.0, 25.0, 0.0, True), (40.0, -25.0, 0.0, True), (40.0, 3.0, 0.0, False),
+            (PLAN_SETTLE_MAX_S + 10.0, 25.0, 0.0, False),
+            (40.0, -25.0, side, True),  # off the leg, coming back to it
+            (40.0, 25.0, side, False)):  # off the leg, going further off
+        c = math.pi / 2 + math.radians(off_deg)
+        x = 100.0 - south
+        tr = dataclasses.replace(_track(x=x, y=past, vx=0.0, vy=1.0,
+                                        kf=(x, past, math.cos(c), math.sin(c))),
+                                 plan_leg=1, plan_s_m=100.0 + past, plan_speed_mps=1.0,
+                                 plan_cross_m=0.0, plan_turn_radius_m=6.0)
+        g = FollowGuidance(FollowSettings())
+        g.set_plan(AuvPlan(0.0, plan, "mission"))
+        _moving(g, tr, (x, past - 1.0))
+        assert g.target is not None
+        assert (g.target.source == "plan") == followed, (past, off_deg, south)

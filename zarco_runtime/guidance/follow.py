@@ -77,6 +77,7 @@ from zarco_runtime.guidance.follow_path import (
 from zarco_runtime.guidance.follow_settings import FollowSettings
 from zarco_runtime.guidance.mission import Leg
 from zarco_runtime.tracking.plan import INFERRED_SOURCE, Plan
+from zarco_runtime.tracking.plan_geometry import PlanLeg
 
 __all__ = ["FollowGuidance", "FollowSettings", "FollowState", "Target", "target_now"]
 
@@ -111,6 +112,16 @@ APPROACH_SIGMAS = 4.0
 #: legs, the track's
 PLAN_CORNER_ZONE_M = 12.0
 PLAN_AFTER_CORNER_S = 20.0
+#: … and on, up to this long after it (s of the AUV's progress), while the
+#: filter has not settled on the new leg (:func:`_settling`): its course
+#: further than ``PLAN_SETTLE_DEG`` off the leg's, its position within
+#: ``PLAN_SETTLE_GATE_M`` of the plan's target, and not going further off the
+#: leg once more than ``PLAN_SETTLE_CROSS_M`` (m) off it (an AUV leaving its
+#: plan)
+PLAN_SETTLE_MAX_S = 60.0
+PLAN_SETTLE_DEG = 10.0
+PLAN_SETTLE_GATE_M = 4.0
+PLAN_SETTLE_CROSS_M = 1.5
 #: above an AUV waiting on its plan, the boat this far ahead of it on its first
 #: leg (m, within the hold radius of the leg) waits there for it
 ABOVE_AHEAD_M = 5.0
@@ -375,11 +386,12 @@ class FollowGuidance:
         without a plan, with the AUV off it, or a track older than the plan.
         Only about a corner — from ``PLAN_CORNER_ZONE_M`` (or 1.2 turning radii)
         and the look-ahead before it to ``PLAN_AFTER_CORNER_S`` of the AUV's
-        progress after it — and after the plan's start: there the plan's
-        target turns with the AUV where the filter's lags, and is on the next
-        line while the filter settles on it; along a leg the track alone is as
-        good, and follows at once an AUV that turns off its plan mid-leg,
-        before the tracker has made sure it left."""
+        progress after it, or on while the filter has yet to settle on the new
+        leg (:func:`_settling`, up to ``PLAN_SETTLE_MAX_S``) — and after the
+        plan's start: there the plan's target turns with the AUV where the
+        filter's lags, and is on the next line while the filter settles on it;
+        along a leg the track alone is as good, and follows at once an AUV that
+        turns off its plan mid-leg, before the tracker has made sure it left."""
         plan, msg = self.plan, self._plan_msg
         if plan is None or msg is None or track.t < msg.t or track.plan_leg < 0:
             self._sm_plan = None
@@ -404,7 +416,9 @@ class FollowGuidance:
         leg = plan.leg_at(path.s)
         since = path.s - leg.s0_m  # since the last corner, or the plan's start
         to = leg.s0_m + leg.length_m - path.s if leg.index + 1 < len(plan.legs) else math.inf
-        after = since <= max(zone, math.hypot(tg.vx, tg.vy) * PLAN_AFTER_CORNER_S)
+        speed = math.hypot(tg.vx, tg.vy)
+        after = since <= max(zone, speed * PLAN_AFTER_CORNER_S) or (
+            since <= speed * PLAN_SETTLE_MAX_S and _settling(track, dt, tg, path, leg))
         if to > zone + self.cfg.lookahead_m and not after:
             self._sm_plan = None
             return None
@@ -561,6 +575,27 @@ class FollowGuidance:
         c, s = math.cos(psi), math.sin(psi)
         leg = Leg(-1, x - c, y - s, x + dist * c, y + dist * s, self.cfg.hold_speed_mps)
         return FollowState(self.mode, leg, 0.0, 0.0, self.cfg.hold_speed_mps, reason)
+
+
+def _settling(track: AuvTrack, dt: float, tg: Target, path: PlanPath, leg: PlanLeg) -> bool:
+    """Whether the filter has yet to settle on ``leg``, the plan's leg the
+    target ``tg`` is on (``path``): after a corner, or the start, the filter's
+    course takes tens of seconds to come onto the new leg's (swinging up to
+    30° about it after a U-turn) while the plan's target is already on it.
+    Settling: the filter's course more than ``PLAN_SETTLE_DEG`` off the leg's,
+    its position (carried ``dt`` s forward) within ``PLAN_SETTLE_GATE_M`` of
+    the target, and, once more than ``PLAN_SETTLE_CROSS_M`` off the leg (from
+    the target's offset), heading back towards it: going further off it is
+    an AUV leaving its plan, which the tracker takes seconds to declare."""
+    kvx, kvy = track.kf_vx_mps, track.kf_vy_mps
+    kx, ky = track.kf_x_m + kvx * dt, track.kf_y_m + kvy * dt
+    off = math.remainder(math.atan2(kvy, kvx) - leg.course_rad, math.tau)
+    if abs(off) <= math.radians(PLAN_SETTLE_DEG):
+        return False
+    if math.hypot(tg.x - kx, tg.y - ky) > PLAN_SETTLE_GATE_M:
+        return False
+    c_rel = leg.project(kx, ky)[1] - path.cross  # m, > 0 to starboard of the target
+    return abs(c_rel) <= PLAN_SETTLE_CROSS_M or c_rel * math.sin(off) <= 0.0
 
 
 def _path_turn_sign(path: StraightPath | PlanPath, ahead: float) -> float:
