@@ -406,19 +406,19 @@ class FollowGuidance:
         # noticed), the filter is followed.  (On a plan given, the filter is
         # as often the one off: a survey error, two beacons.)
         dt = t - track.t0
+        kf_now = (track.kf_x_m + track.kf_vx_mps * dt, track.kf_y_m + track.kf_vy_mps * dt)
         sigma = track.kf_pos_sigma_m if math.isfinite(track.kf_pos_sigma_m) else 0.0
-        if msg.source == INFERRED_SOURCE and math.hypot(
-                tg.x - track.kf_x_m - track.kf_vx_mps * dt,
-                tg.y - track.kf_y_m - track.kf_vy_mps * dt) > PLAN_GATE_M + 3.0 * sigma:
+        if (msg.source == INFERRED_SOURCE
+                and math.dist((tg.x, tg.y), kf_now) > PLAN_GATE_M + 3.0 * sigma):
             self._sm_plan = None
             return None
         zone = max(PLAN_CORNER_ZONE_M, 1.2 * path.radius)
         leg = plan.leg_at(path.s)
         since = path.s - leg.s0_m  # since the last corner, or the plan's start
         to = leg.s0_m + leg.length_m - path.s if leg.index + 1 < len(plan.legs) else math.inf
-        speed = math.hypot(tg.vx, tg.vy)
-        after = since <= max(zone, speed * PLAN_AFTER_CORNER_S) or (
-            since <= speed * PLAN_SETTLE_MAX_S and _settling(track, dt, tg, path, leg))
+        v = math.hypot(tg.vx, tg.vy)
+        after = since <= max(zone, v * PLAN_AFTER_CORNER_S) or (
+            since <= v * PLAN_SETTLE_MAX_S and _settling(track, kf_now, tg, path, leg))
         if to > zone + self.cfg.lookahead_m and not after:
             self._sm_plan = None
             return None
@@ -431,7 +431,6 @@ class FollowGuidance:
                     TENTATIVE_TURN_DEG):
                 self._sm_plan = None
                 return None
-        v = math.hypot(tg.vx, tg.vy)
         r = path.radius
         sm = self._sm_plan
         if sm is None and self._sm is not None and t - self._sm[0] <= 1.0:
@@ -577,24 +576,24 @@ class FollowGuidance:
         return FollowState(self.mode, leg, 0.0, 0.0, self.cfg.hold_speed_mps, reason)
 
 
-def _settling(track: AuvTrack, dt: float, tg: Target, path: PlanPath, leg: PlanLeg) -> bool:
+def _settling(track: AuvTrack, kf_now: tuple[float, float], tg: Target, path: PlanPath,
+              leg: PlanLeg) -> bool:
     """Whether the filter has yet to settle on ``leg``, the plan's leg the
     target ``tg`` is on (``path``): after a corner, or the start, the filter's
     course takes tens of seconds to come onto the new leg's (swinging up to
     30° about it after a U-turn) while the plan's target is already on it.
     Settling: the filter's course more than ``PLAN_SETTLE_DEG`` off the leg's,
-    its position (carried ``dt`` s forward) within ``PLAN_SETTLE_GATE_M`` of
+    its position (``kf_now``, NED m, carried to now) within ``PLAN_SETTLE_GATE_M`` of
     the target, and, once more than ``PLAN_SETTLE_CROSS_M`` off the leg (from
     the target's offset), heading back towards it: going further off it is
     an AUV leaving its plan, which the tracker takes seconds to declare."""
-    kvx, kvy = track.kf_vx_mps, track.kf_vy_mps
-    kx, ky = track.kf_x_m + kvx * dt, track.kf_y_m + kvy * dt
-    off = math.remainder(math.atan2(kvy, kvx) - leg.course_rad, math.tau)
+    off = math.remainder(math.atan2(track.kf_vy_mps, track.kf_vx_mps) - leg.course_rad,
+                         math.tau)
     if abs(off) <= math.radians(PLAN_SETTLE_DEG):
         return False
-    if math.hypot(tg.x - kx, tg.y - ky) > PLAN_SETTLE_GATE_M:
+    if math.dist((tg.x, tg.y), kf_now) > PLAN_SETTLE_GATE_M:
         return False
-    c_rel = leg.project(kx, ky)[1] - path.cross  # m, > 0 to starboard of the target
+    c_rel = leg.project(*kf_now)[1] - path.cross  # m, > 0 to starboard of the target
     return abs(c_rel) <= PLAN_SETTLE_CROSS_M or c_rel * math.sin(off) <= 0.0
 
 
