@@ -75,6 +75,8 @@ def _exercise(ep: str, vessel: str, operator: dict[str, Any], viewer: dict[str, 
         try:
             watch = Watch(view, vessel)
             watch.wait("state", lambda s: s["mode"] == "lines", 60.0)
+            with watch.lock:  # the minute under way starts here (idle before the mission)
+                del watch.states[:-1]
             # the operator's heartbeat as zenoh's examples send a periodic value
             hb = op.declare_publisher(f"zarco/{vessel}/operator")
             # corrections through a declared publisher, an advanced publisher and put
