@@ -110,7 +110,12 @@ def _exercise(ep: str, vessel: str, operator: dict[str, Any], viewer: dict[str, 
             out["states"] = list(watch.states)
             out["events"] = list(watch.events)
             # every operator heartbeat and frame was heard, and none of the viewer's
-            watch.wait("health", lambda h: h["link"].get("heartbeats", 0) >= beats)
+            # (heartbeats and corrections are separate subscribers: under load the
+            # last frame may be counted a health period after the last heartbeat)
+            watch.wait("health", lambda h: (
+                h["link"].get("heartbeats", 0) >= beats
+                and h.get("devices", {}).get("gps", {}).get("counters", {})
+                .get("rtcm_frames", 0) >= frames))
             time.sleep(2.5)  # two more health periods: nothing else arrives
             out["health"] = watch.health
             out["beats"], out["frames"] = beats, frames
