@@ -9,6 +9,7 @@ import math
 import pytest
 
 from zarco_core.auv_messages import AuvPlan, AuvTrack, TrackFlags
+from zarco_runtime.guidance import follow_motion
 from zarco_runtime.guidance.follow import (
     FACE_COURSE_MPS,
     PLAN_SETTLE_CROSS_M,
@@ -20,6 +21,22 @@ from zarco_runtime.guidance.follow import (
 from zarco_runtime.tracking.plan import Plan
 
 VALID = int(TrackFlags.INITIALISED | TrackFlags.LINE_VALID)
+
+
+#: the runtime's rule for a track just acquired (the fixture below sets it aside)
+FRESH_S = follow_motion.FRESH_S
+
+
+@pytest.fixture(autouse=True)
+def _seasoned_track(monkeypatch: pytest.MonkeyPatch) -> None:
+    """These tests are about a track past its first seconds (the tracks they
+    build are taken as seen long before); the tests of the rule for a track
+    just acquired put it back (:func:`_fresh_rule`)."""
+    monkeypatch.setattr(follow_motion, "FRESH_S", 0.0)
+
+
+def _fresh_rule(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(follow_motion, "FRESH_S", FRESH_S)
 
 
 def _track(x: float = 0.0, y: float = 0.0, vx: float = 1.0, vy: float = 0.0,
@@ -451,3 +468,52 @@ def test_past_a_corner_the_plan_is_followed_until_the_filter_is_on_the_new_leg()
         _moving(g, tr, (x, past - 1.0))
         assert g.target is not None
         assert (g.target.source == "plan") == followed, (past, off_deg, south)
+
+
+def test_a_track_just_acquired_is_not_taken_to_move_for_its_first_seconds(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first fixes of a still AUV drift by metres while the calibration
+    settles and the boat closes in: a line at 0.8 m/s, 0.05 m/s σ, is not
+    taken for a start until the track is ``FRESH_S`` old — meanwhile the boat
+    goes to where the filter has the AUV — nor again after a loss."""
+    _fresh_rule(monkeypatch)
+    g = FollowGuidance(FollowSettings())
+    drifting = _track(x=10.0, y=5.0, vx=0.8, vy=0.0, sv=0.05)
+    for t in (100.0, 100.0 + 0.5 * FRESH_S, 100.0 + FRESH_S - 0.5):
+        st = g.update(dataclasses.replace(drifting, t=t, t0=t), t, 0.0, 0.0)
+        assert not g.moving
+        assert st.leg is not None and st.leg.course_rad == pytest.approx(math.atan2(5.0, 10.0))
+    t = 100.0 + FRESH_S + 0.5
+    g.update(dataclasses.replace(drifting, t=t, t0=t), t, 0.0, 0.0)
+    assert g.moving
+    # a track lost before the AUV moved: the one that comes back is fresh again
+    g2 = FollowGuidance(FollowSettings())
+    g2.update(drifting, 100.0, 0.0, 0.0)
+    lost = dataclasses.replace(drifting, t=110.0, t0=110.0, lost=True)
+    assert g2.update(lost, 110.0, 0.0, 0.0).mode == "hold"
+    for t in (120.0, 120.0 + FRESH_S - 0.5):
+        g2.update(dataclasses.replace(drifting, t=t, t0=t), t, 0.0, 0.0)
+        assert not g2.moving
+    t = 120.0 + FRESH_S + 0.5
+    g2.update(dataclasses.replace(drifting, t=t, t0=t), t, 0.0, 0.0)
+    assert g2.moving
+
+
+def test_a_fresh_track_gone_far_from_where_it_was_first_seen_moves(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """An AUV already under way when acquired: once its filter is
+    ``FRESH_ESCAPE_M`` from where it was first seen, it moves whatever the
+    track's age."""
+    _fresh_rule(monkeypatch)
+    g = FollowGuidance(FollowSettings())
+    first = _track(x=10.0, y=5.0, vx=1.0, vy=0.0, sv=0.05)
+    g.update(first, 100.0, 0.0, 0.0)
+    assert not g.moving
+    short = follow_motion.FRESH_ESCAPE_M - 1.0
+    near = _track(x=10.0 + short, y=5.0, vx=1.0, vy=0.0, sv=0.05, t=100.0 + short)
+    g.update(near, near.t, 8.0, 5.0)
+    assert not g.moving
+    gone = follow_motion.FRESH_ESCAPE_M + 0.5
+    far = _track(x=10.0 + gone, y=5.0, vx=1.0, vy=0.0, sv=0.05, t=100.0 + gone)
+    g.update(far, far.t, 9.0, 5.0)
+    assert g.moving

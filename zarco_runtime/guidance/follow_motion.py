@@ -17,6 +17,16 @@ decides which, with hysteresis, from the AUV's track:
   only when both speeds are surely small (a turn's uncertainty is not a
   stop).
 
+A track just acquired (or acquired again after a loss) is not taken to move
+for ``FRESH_S``, unless its filter has gone ``FRESH_ESCAPE_M`` from where it
+was first seen: its first fixes come while the self-calibration (sound speed,
+range biases) settles and while the boat, closing in, changes the geometry
+that maps those errors into position, and they drift by metres over tens of
+seconds — a still AUV seen going at 0.4–1 m/s, its line's σ (white fix
+errors) far too small to tell.  Meanwhile the boat goes to the filter's
+position at the speed it draws away (the guidance's "above" case), which
+also follows an AUV that was moving when acquired.
+
 The moment an AUV the boat held above is taken to move is :attr:`set_off_t`.
 """
 
@@ -32,6 +42,11 @@ MOVING_SIGMAS = 3.0
 #: the filter alone takes the AUV to be moving above this speed (m/s), once the
 #: boat has held above it
 KF_MOVING_MPS = 0.5
+#: for this long (s) after the track is first seen (or seen again after a
+#: loss) the AUV is not taken to move, unless its filter has gone this far (m)
+#: from where it was first seen
+FRESH_S = 30.0
+FRESH_ESCAPE_M = 12.0
 
 
 @dataclass(slots=True)
@@ -47,6 +62,9 @@ class AuvMotion:
     hovered: bool = False
     #: runtime time (s) an AUV the boat held above was last taken to set off
     set_off_t: float = -math.inf
+    #: runtime time (s) and filter position (NED m) the track was first seen
+    #: since the last loss (NaN: not yet)
+    seen: tuple[float, float, float] = (math.nan, math.nan, math.nan)
 
     def hovered_above(self) -> None:
         """The boat holds above a still AUV (within the hold radius)."""
@@ -56,12 +74,19 @@ class AuvMotion:
         """The track is lost: the one that comes back starts with velocities
         that are noise, not a set-off from under the boat."""
         self.hovered = False
+        self.seen = (math.nan, math.nan, math.nan)
 
     def update(self, track: AuvTrack, t: float, plan_speed_mps: float | None) -> bool:
         """Moving at runtime time ``t`` (s)?  ``plan_speed_mps``: the AUV's
         speed along its plan (m/s) while the tracker has it on the plan, else
         None."""
         still = self.still_speed_mps
+        if not math.isfinite(self.seen[0]):
+            self.seen = (t, track.kf_x_m, track.kf_y_m)
+        t0, x0, y0 = self.seen
+        if (not self.moving and t - t0 < FRESH_S
+                and math.hypot(track.kf_x_m - x0, track.kf_y_m - y0) < FRESH_ESCAPE_M):
+            return False
         if plan_speed_mps is not None:
             self.moving = plan_speed_mps >= (0.5 if self.moving else 1.0) * still
             return self.moving
