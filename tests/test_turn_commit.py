@@ -28,3 +28,23 @@ def test_small_errors_are_the_wrapped_difference() -> None:
     ctl = LineController(VesselModel(), Control(), 0.15, 0.05)
     for deg in (-120.0, -10.0, 0.0, 10.0, 120.0):
         assert math.isclose(ctl.heading_error(math.radians(deg), 0.0), math.radians(deg))
+
+
+def test_the_turn_committed_to_is_the_shorter_way_to_the_leg_course() -> None:
+    """From a standstill the reference is the leg's course plus an intercept
+    of tens of degrees on the boat's drift; with the course at 156° to
+    starboard and an intercept of 26° the reference is 178° to port. The
+    boat turns the shorter way to the course (starboard), not round the long
+    way to the reference."""
+    psi = math.radians(-74.0)
+    course = math.radians(82.0)
+    ref = math.radians(108.0)
+    ctl = LineController(VesselModel(), Control(), 0.15, 0.05)
+    e = ctl.heading_error(ref, psi, course)
+    assert e > 0.0 and math.isclose(e, math.radians(182.0), abs_tol=1e-9)
+    # and it keeps that way as it swings on
+    e2 = ctl.heading_error(ref, math.radians(-20.0), course)
+    assert math.isclose(e2, math.radians(128.0), abs_tol=1e-9)
+    # without the course, the wrapped error's sign (the long way here)
+    plain = LineController(VesselModel(), Control(), 0.15, 0.05)
+    assert plain.heading_error(ref, psi) < 0.0

@@ -104,16 +104,22 @@ class LineController:
         self._fresh_leg = True
         self._turn = 0.0
 
-    def heading_error(self, psi_ref: float, psi: float) -> float:
+    def heading_error(self, psi_ref: float, psi: float, course: float = math.nan) -> float:
         """ψ_ref − ψ wrapped to (−π, π], but once the error is beyond
         ``TURN_COMMIT_RAD`` the turn keeps its direction until it is under it:
         at an error near 180° the wrapped error flips sign at every tick and the
-        boat would sit on the wrong heading, chattering, instead of turning."""
+        boat would sit on the wrong heading, chattering, instead of turning.
+        The direction committed to is the shorter way to ``course`` (rad, the
+        leg's course the reference is an intercept about) when it is given:
+        from a standstill, an intercept of tens of degrees on a cross-track
+        drift can put the reference just past 180° the other way, and the boat
+        pivoted the long way round."""
         e = wrap(psi_ref - psi)
         if abs(e) > TURN_COMMIT_RAD:
             if self._turn == 0.0:
-                self._turn = 1.0 if e >= 0.0 else -1.0
-            elif e * self._turn < 0.0:
+                toward = wrap(course - psi) if math.isfinite(course) else e
+                self._turn = 1.0 if toward >= 0.0 else -1.0
+            if e * self._turn < 0.0:
                 e += self._turn * math.tau
         else:
             self._turn = 0.0
@@ -177,7 +183,7 @@ class LineController:
         lim = math.radians(ctl.max_intercept_deg)
         offset = max(-lim, min(lim, math.atan(sigma)))
         psi_ref = wrap(psi0 - offset)
-        n_cmd = (k_psi * self.heading_error(psi_ref, nav.psi_rad) - k_r * nav.r_rps
+        n_cmd = (k_psi * self.heading_error(psi_ref, nav.psi_rad, psi0) - k_r * nav.r_rps
                  - k_n * self.nt)
         x_cmd = (self.feedforward_n(u_w_ref) + ctl.speed_kp * (u_ref - u_g)
                  + ctl.speed_ki * self.u_int)
