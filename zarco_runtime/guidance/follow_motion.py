@@ -17,8 +17,9 @@ decides which, with hysteresis, from the AUV's track:
   only when both speeds are surely small (a turn's uncertainty is not a
   stop).
 
-A track just acquired (or acquired again after a loss) is not taken to move
-for ``FRESH_S``, unless its filter has gone ``FRESH_ESCAPE_M`` from where it
+A track just acquired (or acquired again after a loss while the AUV was
+taken to be still: one taken to move keeps moving through a loss) is not
+taken to move for ``FRESH_S``, unless its filter has gone ``FRESH_ESCAPE_M`` from where it
 was first seen: its first fixes come while the self-calibration (sound speed,
 range biases) settles and while the boat, closing in, changes the geometry
 that maps those errors into position, and they drift by metres over tens of
@@ -43,8 +44,8 @@ MOVING_SIGMAS = 3.0
 #: boat has held above it
 KF_MOVING_MPS = 0.5
 #: for this long (s) after the track is first seen (or seen again after a
-#: loss) the AUV is not taken to move, unless its filter has gone this far (m)
-#: from where it was first seen
+#: loss) a still AUV is not taken to move, unless its filter has gone this
+#: far (m) from where it was first seen
 FRESH_S = 30.0
 FRESH_ESCAPE_M = 12.0
 
