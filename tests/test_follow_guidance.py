@@ -11,6 +11,7 @@ import pytest
 from zarco_core.auv_messages import AuvPlan, AuvTrack, TrackFlags
 from zarco_runtime.guidance import follow_motion
 from zarco_runtime.guidance.follow import (
+    ABOVE_STATION_M,
     FACE_COURSE_MPS,
     PLAN_SETTLE_CROSS_M,
     PLAN_SETTLE_MAX_S,
@@ -188,30 +189,61 @@ def test_a_reversal_is_steered_as_a_turn_not_as_a_heading_error_of_180_degrees()
     assert all(abs(c) <= math.pi / 2 + 1e-9 for c in courses)
 
 
-def test_above_an_auv_waiting_on_its_plan_the_boat_ahead_on_its_first_leg_waits() -> None:
+def test_above_an_auv_waiting_on_its_plan_the_boat_holds_a_station_just_ahead_on_its_first_leg(
+        ) -> None:
     """The AUV hovers at its plan's first point (its speed along the plan a
-    little noise, of either sign): the boat a few metres ahead on the first
-    leg faces the leg and waits there rather than turning round to get above
-    it; behind it, or off the leg, it goes there."""
+    little noise, of either sign): the boat goes to its station a little ahead
+    on the first leg (not to a place anywhere in a zone 5 m ahead, where it
+    waited 4-5 m off); there it faces the leg (turned towards the station, to
+    close a sideways offset) and holds the station forward or astern while it
+    drifts within bounds, then goes back to the station (not to the AUV)."""
     cfg = FollowSettings()
     g = FollowGuidance(cfg)
     g.set_plan(AuvPlan(0.0, ((0.0, 0.0), (100.0, 0.0), (100.0, 20.0)), "mission"))
     still = dataclasses.replace(_track(vx=0.02, sv=0.03), plan_leg=0, plan_s_m=0.0,
                                 plan_speed_mps=-0.05, plan_cross_m=0.0,
                                 plan_turn_radius_m=6.0)
-    for ahead in (2.0, 4.0):
-        st = g.update(still, still.t, ahead, 0.5)
-        assert st.leg is None and st.speed_ref_mps == 0.0, ahead
-        assert st.heading_rad == pytest.approx(0.0)  # the first leg runs north
-    for x, y in ((-4.0, 0.0), (8.0, 0.0), (3.0, 3.0)):
-        st = g.update(still, still.t, x, y)
+    t = still.t
+    # coming back from 4 m ahead or 3 m aside: to the station
+    for x, y in ((4.0, 0.0), (-4.0, 0.0), (1.0, 3.0), (8.0, 0.0)):
+        st = g.update(still, t, x, y)
         assert st.leg is not None, (x, y)
-        err = math.remainder(st.leg.course_rad - math.atan2(-y, -x), math.tau)
-        assert err == pytest.approx(0.0, abs=1e-6)
-    # the tracker's match to the plan flickers off for a moment: still waiting
-    off = dataclasses.replace(still, plan_leg=-1, t=still.t + 2.0, t0=still.t + 2.0)
-    st = g.update(off, off.t, 4.0, 0.5)
-    assert st.leg is None and st.heading_rad == pytest.approx(0.0)
+        assert st.station is None
+        err = math.remainder(st.leg.course_rad - math.atan2(-y, ABOVE_STATION_M - x), math.tau)
+        assert err == pytest.approx(0.0, abs=0.01), (x, y)
+    # there (within the hold radius of it): facing the leg (north), turned
+    # towards the station — at most 45° — to bring it ahead or astern (the
+    # surge law closes a sideways offset then); the station, ahead of the AUV
+    a = ABOVE_STATION_M
+    for x, y, ahead in ((a + 0.5, 0.5, False), (a + 1.5, 1.0, False), (3.8, 2.2, False),
+                        (-2.0, -2.0, True), (a - 0.8, 0.0, True)):
+        t += 0.05
+        st = g.update(still, t, x, y)
+        assert st.leg is None and st.speed_ref_mps == 0.0, (x, y)
+        assert st.station == pytest.approx((ABOVE_STATION_M, 0.0), abs=0.01), (x, y)
+        assert abs(st.heading_rad) <= math.radians(45.0) + 1e-9, (x, y)
+        ex, ey = ABOVE_STATION_M - x, -y
+        along = ex * math.cos(st.heading_rad) + ey * math.sin(st.heading_rad)
+        aside = -ex * math.sin(st.heading_rad) + ey * math.cos(st.heading_rad)
+        assert (along > 0.0) == ahead, (x, y)
+        assert abs(aside) <= abs(ey) + 1e-9, (x, y)  # less sideways than on the leg
+        if y == 0.0:
+            assert st.heading_rad == pytest.approx(0.0)
+    # the tracker's match to the plan flickers off for a moment: still held
+    off = dataclasses.replace(still, plan_leg=-1, t=t + 0.05, t0=t + 0.05)
+    st = g.update(off, off.t, 3.0, 0.5)
+    assert st.leg is None and st.station == pytest.approx((ABOVE_STATION_M, 0.0), abs=0.01)
+    # drifted out of bounds (to the side, too far ahead): back to the station
+    for x, y in ((1.0, 2.6), (4.2, 0.0)):
+        g.update(still, off.t, 1.0, 0.0)  # held again
+        st = g.update(still, off.t + 0.05, x, y)
+        assert st.leg is not None, (x, y)
+        err = math.remainder(st.leg.course_rad - math.atan2(-y, ABOVE_STATION_M - x), math.tau)
+        assert err == pytest.approx(0.0, abs=0.01), (x, y)
+    # without a plan, nothing changes: within the hold radius the boat drifts
+    g2 = FollowGuidance(cfg)
+    st = g2.update(still, still.t, 1.0, 0.5)
+    assert st.leg is None and st.station is None
 
 
 def test_an_auv_starting_off_is_gone_after_at_its_speed_without_waiting_for_its_track() -> None:
@@ -516,4 +548,33 @@ def test_a_fresh_track_gone_far_from_where_it_was_first_seen_moves(
     gone = follow_motion.FRESH_ESCAPE_M + 0.5
     far = _track(x=10.0 + gone, y=5.0, vx=1.0, vy=0.0, sv=0.05, t=100.0 + gone)
     g.update(far, far.t, 9.0, 5.0)
+    assert g.moving
+
+
+def test_on_its_plan_a_hovering_auv_is_taken_to_move_only_with_its_filter_moving() -> None:
+    """Hovering at its plan's start, the AUV's speed along the plan flickers
+    above the still speed while its filter has it nearly still: the boat holds
+    its station (before, it ran metres along the plan after a target that was
+    not moving); the filter corroborating, it sets off."""
+    cfg = FollowSettings()
+    g = FollowGuidance(cfg)
+    g.set_plan(AuvPlan(0.0, ((0.0, 0.0), (100.0, 0.0), (100.0, 20.0)), "mission"))
+    flicker = 1.5 * cfg.still_speed_mps
+    base = dataclasses.replace(_track(vx=0.02, sv=0.03), plan_leg=0, plan_s_m=0.0,
+                               plan_cross_m=0.0, plan_turn_radius_m=6.0)
+    t = base.t
+    g.update(dataclasses.replace(base, plan_speed_mps=0.0), t, 1.0, 0.0)
+    assert not g.moving
+    kf_slow = 0.5 * follow_motion.PLAN_KF_MOVING_MPS
+    for k in range(40):
+        t += 0.05
+        tr = dataclasses.replace(base, t=t, t0=t, plan_speed_mps=flicker,
+                                 kf_vx_mps=kf_slow)
+        st = g.update(tr, t, 1.0, 0.0)
+        assert not g.moving, k
+        assert st.leg is None and st.station == pytest.approx((ABOVE_STATION_M, 0.0), abs=0.1)
+    t += 0.05
+    tr = dataclasses.replace(base, t=t, t0=t, plan_speed_mps=flicker,
+                             kf_vx_mps=1.5 * follow_motion.PLAN_KF_MOVING_MPS)
+    g.update(tr, t, 1.0, 0.0)
     assert g.moving

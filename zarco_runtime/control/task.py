@@ -115,6 +115,8 @@ class ControlTask:
         self._psi_hold: float | None = None
         self._still_leg = 0
         self._still_int = 0.0
+        #: integral (m s) of the station distance above an AUV waiting on its plan
+        self._above_int = 0.0
         self.reason = "idle"
         self.fault = ""
         self.ticks = 0
@@ -285,8 +287,22 @@ class ControlTask:
             elif self._psi_hold is None:
                 self._psi_hold = nav.psi_rad
             dem = self.ctl.hold(nav, self._psi_hold)
+            if fs.station is not None:
+                # above an AUV waiting on its plan: hold the station along the
+                # heading, forward or astern (station keeping's surge law; while
+                # the boat pivots to the heading, only what lies along it)
+                hc = self.cfg.hold
+                ahead = ((fs.station[0] - nav.x_m) * math.cos(nav.psi_rad)
+                         + (fs.station[1] - nav.y_m) * math.sin(nav.psi_rad))
+                lead = max(-hc.along_clamp_m, min(hc.along_clamp_m, ahead))
+                self._above_int += lead * self.dt
+                dem = Demand(dem.x_n + hc.k_s * lead + hc.k_i * self._above_int, dem.n_nm,
+                             dem.psi_ref_rad, dem.psi0_rad)
+            else:
+                self._above_int = 0.0
         else:
             self._psi_hold = None
+            self._above_int = 0.0
             along = fs.along_error_m if fs.mode == "follow" else None
             dem = self.ctl.step(nav, fs.leg, fs.leg.project(nav.x_m, nav.y_m)[1], along,
                                 fs.k_s, fs.k_i, fcfg.along_clamp_m)

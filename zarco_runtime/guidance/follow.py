@@ -122,9 +122,23 @@ PLAN_SETTLE_MAX_S = 60.0
 PLAN_SETTLE_DEG = 10.0
 PLAN_SETTLE_GATE_M = 4.0
 PLAN_SETTLE_CROSS_M = 1.5
-#: above an AUV waiting on its plan, the boat this far ahead of it on its first
-#: leg (m, within the hold radius of the leg) waits there for it
-ABOVE_AHEAD_M = 5.0
+#: above an AUV waiting on its plan, the boat's station is this far (m) ahead
+#: of it on its first leg; there, facing the leg, the boat holds it forward or
+#: astern while it stays within these bounds (m: to the side of the leg, behind
+#: and ahead of the AUV along it; :meth:`FollowGuidance._above`)
+ABOVE_STATION_M = 1.75
+ABOVE_SIDE_M = 2.5
+ABOVE_BEHIND_M = 2.5
+ABOVE_AHEAD_M = 4.0
+#: the station is held while the guidance keeps finding the boat there (s
+#: between two control ticks at most)
+STATION_GAP_S = 0.5
+#: holding it, the boat's heading turns up to this far off the course (rad),
+#: in full from this far off the station (m), and keeps the station ahead (or
+#: astern) until it is this far past abeam (rad)
+STATION_TILT_RAD = math.radians(45.0)
+STATION_TILT_M = 3.0
+STATION_SWAP_RAD = math.radians(20.0)
 #: above a still AUV, its plan's course is kept this long (s) after its track
 #: was last on the plan
 PLAN_COURSE_HOLD_S = 10.0
@@ -147,6 +161,22 @@ PAPER_LEG_BEHIND_M = 50.0
 PAPER_LEG_AHEAD_M = 200.0
 
 
+def _low_pass(sm: tuple[float, float, float] | None, tg: Target, t: float, tau_s: float
+              ) -> tuple[tuple[float, float, float], Target]:
+    """``tg``'s position low-passed over ``tau_s`` (s) about its own motion from
+    the state ``sm`` (t, x, y; None: start at ``tg``); a jump beyond
+    ``TARGET_RESET_M`` is taken at once.  Returns the new state and target."""
+    if sm is None or t <= sm[0] or math.hypot(tg.x - sm[1], tg.y - sm[2]) > TARGET_RESET_M:
+        return (t, tg.x, tg.y), tg
+    dt = t - sm[0]
+    x = sm[1] + tg.vx * dt
+    y = sm[2] + tg.vy * dt
+    a = min(1.0, dt / tau_s)
+    x += a * (tg.x - x)
+    y += a * (tg.y - y)
+    return (t, x, y), Target(x, y, tg.vx, tg.vy, tg.source)
+
+
 @dataclass(slots=True)
 class FollowState:
     """What the follow guidance decided at one instant.
@@ -158,7 +188,9 @@ class FollowState:
     ``along_error_m`` of the law in use; ``heading_rad``: without a leg, the
     heading to keep (NaN: the present one) — above an AUV waiting on its plan,
     the course it will leave on; without a plan, the filter's course once it
-    has the AUV creeping.
+    has the AUV creeping; ``station``: without a leg, the point (NED, m) the
+    boat holds forward or astern along its heading with the surge law of
+    station keeping (``[hold]`` gains; None: it drifts).
     """
 
     mode: str  # "follow", "hold" (track lost), "wait" (no track yet)
@@ -171,6 +203,7 @@ class FollowState:
     k_s: float = 0.0
     k_i: float = 0.0
     heading_rad: float = math.nan
+    station: tuple[float, float] | None = None
 
 
 class FollowGuidance:
@@ -192,6 +225,13 @@ class FollowGuidance:
         self._cog: float | None = None
         self._sm: tuple[float, float, float] | None = None
         self._was_above = False
+        #: runtime time (s) the boat last held its station above a still AUV
+        #: on its plan (None: not holding it)
+        self._station_t: float | None = None
+        #: … with the station ahead of the boat (else astern)
+        self._station_ahead = True
+        #: above a still AUV on its plan, its track's target low-passed (t, x, y)
+        self._sm_still: tuple[float, float, float] | None = None
         #: the AUV's plan (set_plan) and the target's smoothed (t, s, cross) on it
         self.plan: Plan | None = None
         self._plan_msg: AuvPlan | None = None
@@ -230,7 +270,8 @@ class FollowGuidance:
             self.target = None
             self.motion.track_lost()
             return self._hold(x, y, reason or "no AUV track yet")
-        tg = target_now(track, t, cfg.line_gate_m, math.radians(cfg.line_course_gate_deg))
+        raw = target_now(track, t, cfg.line_gate_m, math.radians(cfg.line_course_gate_deg))
+        tg = raw
         on_plan = self._on_plan(track, t)
         path: StraightPath | PlanPath
         if on_plan is not None:
@@ -247,6 +288,14 @@ class FollowGuidance:
         gap = math.hypot(tg.x - x, tg.y - y)  # the boat's distance to the target (m)
         approach = on_plan is None and v < SLOW_AUV_MPS and gap > APPROACH_FAR_M
         if not (self.moving and v >= V_MIN_MPS) or approach:
+            if on_plan is not None:
+                # above a still AUV, where its track has it, not its plan's
+                # target: the tracker's progress along the plan and its speed
+                # there are noise of a hovering AUV (metres ahead of it)
+                sm = self._sm_still if self._sm_still is not None and \
+                    t - self._sm_still[0] <= 1.0 else None
+                self._sm_still, tg = _low_pass(sm, raw, t, cfg.target_tau_s)
+                self.target = tg
             # AUV still: keep above it once its track has settled (going to where
             # the filter has it, so a start is followed before it is declared),
             # else hold where we are
@@ -456,48 +505,55 @@ class FollowGuidance:
         motion (no lag at constant velocity): a new fix moves it smoothly, not
         in a step the boat would steer at.  A jump beyond ``TARGET_RESET_M``
         (re-acquisition) is taken at once."""
-        sm = self._sm
-        if sm is None or t <= sm[0] or math.hypot(tg.x - sm[1], tg.y - sm[2]) > TARGET_RESET_M:
-            self._sm = (t, tg.x, tg.y)
-            return tg
-        dt = t - sm[0]
-        x = sm[1] + tg.vx * dt
-        y = sm[2] + tg.vy * dt
-        a = min(1.0, dt / self.cfg.target_tau_s)
-        x += a * (tg.x - x)
-        y += a * (tg.y - y)
-        self._sm = (t, x, y)
-        return Target(x, y, tg.vx, tg.vy, tg.source)
+        self._sm, tg = _low_pass(self._sm, tg, t, self.cfg.target_tau_s)
+        return tg
 
     def _above(self, tg: Target, t: float, x: float, y: float,
                course: float = math.nan, reason: str = "",
                face: float = math.nan) -> FollowState:
         """Keep above a still AUV: drift within ``hold_radius_m`` of the filter's
-        position (facing ``course``, rad, when it is known: on its plan, the
-        AUV will leave along it — and ahead of it on that course, up to
-        ``ABOVE_AHEAD_M``, the boat waits for it rather than turning round),
-        else go there at the speed the AUV moves away (its estimate's, while
-        it is not yet taken to move) plus the gap over ``catchup_tau_s``.
-        ``reason``: what the state says when the AUV is not still (a slow AUV
-        far off); ``face``: without ``course``, the heading (rad) to keep
-        above it (NaN: the present one)."""
+        position, else go there at the speed the AUV moves away (its
+        estimate's, while it is not yet taken to move) plus the gap over
+        ``catchup_tau_s``.  With ``course`` (rad: on its plan, the AUV will
+        leave along it) the boat's station is ``ABOVE_STATION_M`` ahead of the
+        AUV on that course: once within ``hold_radius_m`` of it the boat faces
+        the course and holds the station forward or astern (a drift along the
+        course is not a pivot and a run back), until it is further than
+        ``ABOVE_SIDE_M`` to the side of the course or outside
+        ``ABOVE_BEHIND_M`` behind to ``ABOVE_AHEAD_M`` ahead of the AUV; it
+        then goes back to the station.  ``reason``: what the state says when
+        the AUV is not still (a slow AUV far off); ``face``: without
+        ``course``, the heading (rad) to keep above it (NaN: the present
+        one)."""
         cfg = self.cfg
         self._was_above = True
         self.hold = None
         self.mode = "follow"
-        dx, dy = tg.x - x, tg.y - y
-        dist = math.hypot(dx, dy)
-        waiting = False
+        gx, gy = tg.x, tg.y
         if math.isfinite(course):
             cc, sc = math.cos(course), math.sin(course)
+            dx, dy = tg.x - x, tg.y - y
             lead, side = -(dx * cc + dy * sc), -dx * sc + dy * cc
-            waiting = 0.0 <= lead <= ABOVE_AHEAD_M and abs(side) <= cfg.hold_radius_m
-        if dist <= cfg.hold_radius_m or waiting:
+            gx, gy = tg.x + ABOVE_STATION_M * cc, tg.y + ABOVE_STATION_M * sc
+            held = self._station_t is not None and 0.0 <= t - self._station_t <= STATION_GAP_S
+            if (math.hypot(gx - x, gy - y) <= cfg.hold_radius_m
+                    or (held and -ABOVE_BEHIND_M <= lead <= ABOVE_AHEAD_M
+                        and abs(side) <= ABOVE_SIDE_M)):
+                self._station_t = t
+                self.motion.hovered_above()
+                self._psi_ref = None
+                return FollowState("follow", None, 0.0, -lead, 0.0, "above a still AUV",
+                                   tg.source, heading_rad=self._station_heading(
+                                       course, gx - x, gy - y), station=(gx, gy))
+        self._station_t = None
+        dx, dy = gx - x, gy - y
+        dist = math.hypot(dx, dy)
+        if dist <= cfg.hold_radius_m:
             self.motion.hovered_above()
             self._psi_ref = None
             return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
-                               heading_rad=course if math.isfinite(course) else face)
-        psi = self._steer(math.atan2(tg.y - y, tg.x - x), t, lead_cog=False)
+                               heading_rad=face)
+        psi = self._steer(math.atan2(dy, dx), t, lead_cog=False)
         if self._psi_leg is None or abs(math.remainder(psi - self._psi_leg, math.tau)) > \
                 math.radians(cfg.new_line_deg):
             self.leg_id += 1
@@ -509,6 +565,24 @@ class FollowGuidance:
         leg = Leg(self.leg_id, x, y, x + dist * c, y + dist * s, v_ref)
         return FollowState("follow", leg, 0.0, 0.0, v_ref, reason or "above a still AUV",
                            tg.source)
+
+    def _station_heading(self, course: float, ex: float, ey: float) -> float:
+        """The heading (rad) to hold a station (``ex``, ``ey``: NED m from the
+        boat) with the course ``course`` (rad) it will leave on: the course,
+        turned up to ``STATION_TILT_RAD`` (in full from ``STATION_TILT_M`` off)
+        to bring the station ahead or astern — the surge law then closes a
+        sideways offset too (the hull cannot be pushed sideways).  Ahead or
+        astern is kept until the station is ``STATION_SWAP_RAD`` past abeam."""
+        d = math.hypot(ex, ey)
+        if d < 1e-6:
+            return course
+        off = math.remainder(math.atan2(ey, ex) - course, math.tau)
+        edge = 0.5 * math.pi + (STATION_SWAP_RAD if self._station_ahead else -STATION_SWAP_RAD)
+        self._station_ahead = abs(off) <= edge
+        if not self._station_ahead:
+            off = math.remainder(off + math.pi, math.tau)  # the stern towards it
+        tilt = max(-STATION_TILT_RAD, min(STATION_TILT_RAD, off)) * min(1.0, d / STATION_TILT_M)
+        return course + tilt
 
     def _track_cog(self, t: float, x: float, y: float) -> None:
         """The boat's course over ground (rad) from its positions at least

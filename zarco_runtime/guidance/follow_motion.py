@@ -4,9 +4,12 @@ The follow guidance holds above a still AUV and follows a moving one; this
 decides which, with hysteresis, from the AUV's track:
 
 * on its a-priori plan, the tracker's speed along the plan: moving above
-  ``still_speed_mps``, still again below half of it (a still AUV waiting at
-  its plan's start is seen moving off along its first leg within a fix or
-  two);
+  ``still_speed_mps`` (a still AUV waiting at its plan's start is seen moving
+  off along its first leg within a fix or two) with the filter's speed above
+  ``PLAN_KF_MOVING_MPS`` (a hovering AUV's speed along its plan flickers to
+  0.3–0.5 m/s for seconds while its filter's stays below 0.2 m/s: the boat
+  ran metres along the plan after a target that was not moving), still again
+  below half of ``still_speed_mps``;
 * otherwise the RLS line's speed (re-seeded from the filter at every
   manoeuvre, a start included) above ``still_speed_mps`` and
   ``MOVING_SIGMAS`` of its uncertainty; or, once the boat has held above the
@@ -43,6 +46,9 @@ MOVING_SIGMAS = 3.0
 #: the filter alone takes the AUV to be moving above this speed (m/s), once the
 #: boat has held above it
 KF_MOVING_MPS = 0.5
+#: on its plan, an AUV is taken to move only once its filter's speed is above
+#: this too (m/s)
+PLAN_KF_MOVING_MPS = 0.2
 #: for this long (s) after the track is first seen (or seen again after a
 #: loss) a still AUV is not taken to move, unless its filter has gone this
 #: far (m) from where it was first seen
@@ -89,7 +95,12 @@ class AuvMotion:
                 and math.hypot(track.kf_x_m - x0, track.kf_y_m - y0) < FRESH_ESCAPE_M):
             return False
         if plan_speed_mps is not None:
-            self.moving = plan_speed_mps >= (0.5 if self.moving else 1.0) * still
+            if self.moving:
+                self.moving = plan_speed_mps >= 0.5 * still
+            else:
+                self.moving = (plan_speed_mps >= still
+                               and math.hypot(track.kf_vx_mps, track.kf_vy_mps)
+                               >= PLAN_KF_MOVING_MPS)
             return self.moving
         cov = track.cov
         sv = math.sqrt(max(0.5 * (cov[10] + cov[15]), 0.0)) if len(cov) == 16 else 0.0
