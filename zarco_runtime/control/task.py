@@ -286,19 +286,16 @@ class ControlTask:
                 self._psi_hold = fs.heading_rad
             elif self._psi_hold is None:
                 self._psi_hold = nav.psi_rad
-            dem = self.ctl.hold(nav, self._psi_hold)
             if fs.station is not None:
                 # above an AUV waiting on its plan: hold the station along the
-                # heading, forward or astern (station keeping's surge law; while
-                # the boat pivots to the heading, only what lies along it)
-                hc = self.cfg.hold
+                # heading, forward or astern (while the boat pivots to the
+                # heading, only what lies along it)
                 ahead = ((fs.station[0] - nav.x_m) * math.cos(nav.psi_rad)
                          + (fs.station[1] - nav.y_m) * math.sin(nav.psi_rad))
-                lead = max(-hc.along_clamp_m, min(hc.along_clamp_m, ahead))
-                self._above_int += lead * self.dt
-                dem = Demand(dem.x_n + hc.k_s * lead + hc.k_i * self._above_int, dem.n_nm,
-                             dem.psi_ref_rad, dem.psi0_rad)
+                dem, self._above_int = self._hold_along(nav, self._psi_hold, ahead,
+                                                        self._above_int)
             else:
+                dem = self.ctl.hold(nav, self._psi_hold)
                 self._above_int = 0.0
         else:
             self._psi_hold = None
@@ -320,18 +317,29 @@ class ControlTask:
         if hs.phase == "station" and hs.still:
             # nothing to steer against: hold the line's heading, PI on the along-line
             # distance to the point (forward or astern)
-            lead = max(-hc.along_clamp_m, min(hc.along_clamp_m, hs.along_m))
             if hs.leg.index != self._still_leg:
                 self._still_leg, self._still_int = hs.leg.index, 0.0
-            self._still_int += lead * self.dt
-            hd = self.ctl.hold(nav, hs.leg.course_rad)
-            dem = Demand(hd.x_n + hc.k_s * lead + hc.k_i * self._still_int, hd.n_nm,
-                         hd.psi_ref_rad, hd.psi0_rad)
+            dem, self._still_int = self._hold_along(nav, hs.leg.course_rad, hs.along_m,
+                                                    self._still_int)
         elif hs.phase == "station":
             dem = self.ctl.step(nav, hs.leg, d, hs.along_m, hc.k_s, hc.k_i, hc.along_clamp_m)
         else:
             dem = self.ctl.step(nav, hs.leg, d)
         return self._apply(t, nav, dem)
+
+    def _hold_along(self, nav: NavState, psi: float, ahead_m: float, integral: float
+                    ) -> tuple[Demand, float]:
+        """Station keeping along the heading: hold heading ``psi`` (rad) and push
+        the boat towards a point ``ahead_m`` (m, < 0 astern) along it with the
+        ``hold`` mode's surge law (``k_s``, ``k_i`` on ``integral``, m s, the
+        distance clamped to ``along_clamp_m``).  Returns the demand and the
+        integral carried on."""
+        hc = self.cfg.hold
+        lead = max(-hc.along_clamp_m, min(hc.along_clamp_m, ahead_m))
+        integral += lead * self.dt
+        hd = self.ctl.hold(nav, psi)
+        return Demand(hd.x_n + hc.k_s * lead + hc.k_i * integral, hd.n_nm, hd.psi_ref_rad,
+                      hd.psi0_rad), integral
 
     def _apply(self, t: float, nav_now: NavState, dem: Demand) -> Allocation:
         alloc = allocate(dem.x_n, dem.n_nm, self.cfg.vessel.b_m, self.port, self.stbd)
