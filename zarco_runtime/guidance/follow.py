@@ -161,12 +161,14 @@ PAPER_LEG_BEHIND_M = 50.0
 PAPER_LEG_AHEAD_M = 200.0
 
 
-def _low_pass(sm: tuple[float, float, float] | None, tg: Target, t: float, tau_s: float
-              ) -> tuple[tuple[float, float, float], Target]:
+def _low_pass(sm: tuple[float, float, float] | None, tg: Target, t: float, tau_s: float,
+              max_gap_s: float = math.inf) -> tuple[tuple[float, float, float], Target]:
     """``tg``'s position low-passed over ``tau_s`` (s) about its own motion from
-    the state ``sm`` (t, x, y; None: start at ``tg``); a jump beyond
-    ``TARGET_RESET_M`` is taken at once.  Returns the new state and target."""
-    if sm is None or t <= sm[0] or math.hypot(tg.x - sm[1], tg.y - sm[2]) > TARGET_RESET_M:
+    the state ``sm`` (t, x, y; None, or older than ``max_gap_s``: start at
+    ``tg``); a jump beyond ``TARGET_RESET_M`` is taken at once.  Returns the
+    new state and target."""
+    if (sm is None or t <= sm[0] or t - sm[0] > max_gap_s
+            or math.hypot(tg.x - sm[1], tg.y - sm[2]) > TARGET_RESET_M):
         return (t, tg.x, tg.y), tg
     dt = t - sm[0]
     x = sm[1] + tg.vx * dt
@@ -292,9 +294,8 @@ class FollowGuidance:
                 # above a still AUV, where its track has it, not its plan's
                 # target: the tracker's progress along the plan and its speed
                 # there are noise of a hovering AUV (metres ahead of it)
-                sm = self._sm_still if self._sm_still is not None and \
-                    t - self._sm_still[0] <= 1.0 else None
-                self._sm_still, tg = _low_pass(sm, raw, t, cfg.target_tau_s)
+                self._sm_still, tg = _low_pass(self._sm_still, raw, t, cfg.target_tau_s,
+                                               max_gap_s=1.0)
                 self.target = tg
             # AUV still: keep above it once its track has settled (going to where
             # the filter has it, so a start is followed before it is declared),

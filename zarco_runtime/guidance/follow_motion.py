@@ -94,18 +94,16 @@ class AuvMotion:
         if (not self.moving and t - t0 < FRESH_S
                 and math.hypot(track.kf_x_m - x0, track.kf_y_m - y0) < FRESH_ESCAPE_M):
             return False
+        v_kf = math.hypot(track.kf_vx_mps, track.kf_vy_mps)
         if plan_speed_mps is not None:
             if self.moving:
                 self.moving = plan_speed_mps >= 0.5 * still
             else:
-                self.moving = (plan_speed_mps >= still
-                               and math.hypot(track.kf_vx_mps, track.kf_vy_mps)
-                               >= PLAN_KF_MOVING_MPS)
+                self.moving = plan_speed_mps >= still and v_kf >= PLAN_KF_MOVING_MPS
             return self.moving
         cov = track.cov
         sv = math.sqrt(max(0.5 * (cov[10] + cov[15]), 0.0)) if len(cov) == 16 else 0.0
         v_line = math.hypot(track.vx_mps, track.vy_mps)
-        v_kf = math.hypot(track.kf_vx_mps, track.kf_vy_mps)
         if not self.moving:
             self.moving = (v_line >= max(still, MOVING_SIGMAS * sv)
                            or (self.hovered and v_kf >= max(still, KF_MOVING_MPS)))
