@@ -19,7 +19,13 @@ probabilities follow the elapsed time (model j is left at the rate
 1/``sojourn_s[j]``: the quiet model for the others in equal shares, a
 manoeuvring one mostly for the quiet one, ``RETURN_SHARE``), each is propagated, and
 each is weighted by how well it predicted the measurement.  Gating is on the
-combined estimate (whose covariance holds the models' spread); each model
+combined estimate (whose covariance holds the models' spread), or on a
+coordinated-turn model that still holds ``GATE_TURN_MU`` of the probability:
+a measurement that model predicts within the gate is taken even when the
+combined estimate, still mostly straight, would refuse it (the fixes that
+show a turn are the ones a straight filter finds too far; refused, they
+left the filter going on along the old course metres past the turn, and the
+one-range updates between them could not pull it back).  Each model
 down-weights an accepted measurement beyond ``soft_chi2`` by its own d²
 (Huber: the turning model takes a turn the quiet one discounts), and the
 models' likelihoods are a Gaussian plus an outlier floor common to every model
@@ -53,6 +59,9 @@ OUTLIER_PROBABILITY = 0.05
 OUTLIER_SPAN_M = 30.0
 OUTLIER_DENSITY = tuple(OUTLIER_PROBABILITY * (2.0 * math.pi) ** (0.5 * m) / OUTLIER_SPAN_M ** m
                         for m in (1, 2))
+#: a coordinated-turn model with at least this probability opens the gate to
+#: the measurements it predicts within it (module docstring)
+GATE_TURN_MU = 0.05
 #: variance of ω in a constant-velocity model ((rad/s)²: about 3 °/s 1σ)
 CV_OMEGA_VAR = 0.05 ** 2
 
@@ -426,7 +435,9 @@ class Imm:
     def update(self, rows: list[tuple[float, float]], z: list[float], var: list[float],
                gate_chi2: float = math.inf, soft_chi2: float = math.inf) -> tuple[bool, float]:
         """Measurement update (module docstring): refused when the combined
-        estimate's d² exceeds ``gate_chi2``.  Returns (accepted, that d²)."""
+        estimate's d² exceeds ``gate_chi2`` and no coordinated-turn model with
+        a probability of ``GATE_TURN_MU`` or more has its own d² within it.
+        Returns (accepted, the combined estimate's d²)."""
         ms = self.models
         dl = [mdl.innovation(rows, z, var) for mdl in ms]
         x, P = self.x, self.P
@@ -434,7 +445,9 @@ class Imm:
         comb.x = [*x, 0.0]
         comb.P = [[*row, 0.0] for row in P] + [[0.0] * N]
         d2c, _ = comb.innovation(rows, z, var)
-        if not d2c <= gate_chi2:
+        if not d2c <= gate_chi2 and not any(
+                mdl.kind == "ct" and mu >= GATE_TURN_MU and dj <= gate_chi2
+                for mdl, mu, (dj, _ldet) in zip(ms, self.mu, dl, strict=True)):
             return False, d2c
         logl = []
         for mdl, (dj, ldet) in zip(ms, dl, strict=True):
