@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 
 from zarco_runtime.tracking import imm
-from zarco_runtime.tracking.imm import Imm, ModelSpec, _Model
+from zarco_runtime.tracking.imm import Imm, _Model
 from zarco_runtime.tracking.kalman import CvKalman
+from zarco_runtime.tracking.params import TrackerParams
+from zarco_runtime.tracking.tracker import imm_bank
 
 XY = [(1.0, 0.0), (0.0, 1.0)]
 
@@ -151,17 +153,6 @@ def test_one_outlier_moves_the_probabilities_a_bounded_amount() -> None:
     assert f.mu[0] > 0.3 * mu0  # a single outlier does not declare a manoeuvre
 
 
-def _tracker_bank() -> Imm:
-    """The tracker's bank (its default parameters): a quiet near-straight
-    model, a manoeuvring one, a free turn and turns at ±10 °/s."""
-    w0, w_max, w_var = math.radians(10.0), math.radians(20.0), math.radians(2.0) ** 2
-    turn = ModelSpec("ct", 0.01, 0.003, omega_max=w_max)
-    return Imm([ModelSpec("ct", 0.004, 3e-6, omega_max=w_max), ModelSpec("cv", 0.2), turn,
-                turn._replace(q_omega=w_var / 20.0, omega0=w0, omega0_var=w_var),
-                turn._replace(q_omega=w_var / 20.0, omega0=-w0, omega0_var=w_var)],
-               (60.0, 10.0, 20.0, 20.0, 20.0), (0.6, 0.1, 0.1, 0.1, 0.1))
-
-
 def _sparse_uturn(seed: int) -> tuple[int, float]:
     """A 1.2 m/s AUV turning 180° at 10 °/s after 60 s of straight flight, fixed
     every second before the turn and every 3 s from then on (fixes of 1 m σ):
@@ -178,7 +169,7 @@ def _sparse_uturn(seed: int) -> tuple[int, float]:
         back = max(0.0, t - 60.0 - math.pi / w)
         return 60.0 * v + r * math.sin(a) - v * back, r * (1.0 - math.cos(a))
 
-    f = _tracker_bank()
+    f = imm_bank(TrackerParams())
     f.init(0.0, 0.0, 0.0, v, 0.0, 1.0, 0.1)
     refused, err = 0, 0.0
     t = 0.0

@@ -125,6 +125,26 @@ PLAN_STRAIGHT_MARGIN_M = 3.0
 Out = list[AuvFix | AuvTrack]
 
 
+def imm_bank(params: TrackerParams) -> Imm:
+    """The IMM the tracker runs with ``motion_model = "imm"``: the quiet model
+    (a straight line or a slow arc), the manoeuvring constant-velocity one, a
+    coordinated turn at any rate, and two at ``turn_rate_dps`` (to starboard,
+    to port), with the parameters' densities and sojourn times."""
+    w0 = math.radians(params.turn_rate_dps)
+    w_max = math.radians(params.max_turn_rate_dps)
+    w_var = math.radians(TURN_RATE_SIGMA_DPS) ** 2
+    turn = ModelSpec("ct", params.turn_accel_psd, params.turn_rate_psd, omega_max=w_max)
+    return Imm([ModelSpec("ct", params.accel_psd, params.arc_rate_psd, omega_max=w_max),
+                ModelSpec("cv", params.maneuver_accel_psd), turn,
+                turn._replace(q_omega=w_var / params.turn_sojourn_s, omega0=w0,
+                              omega0_var=w_var),
+                turn._replace(q_omega=w_var / params.turn_sojourn_s, omega0=-w0,
+                              omega0_var=w_var)],
+               (params.straight_sojourn_s, params.maneuver_sojourn_s,
+                params.turn_sojourn_s, params.turn_sojourn_s, params.turn_sojourn_s),
+               (0.6, 0.1, 0.1, 0.1, 0.1))
+
+
 class AuvTracker:
     """Passive LBL tracker of one AUV.  Feed :meth:`on_event` (or :meth:`process`)
     with every :class:`~zarco_core.auv_messages.AcousticEvent` in arrival
@@ -146,25 +166,8 @@ class AuvTracker:
         self.cycles = CycleAssembler(self.net, params.auv_depth_m, params.max_range_m,
                                      params.sequence, self._predict_range, 4.0,
                                      params.closing_margin_m)
-        self.kf: CvKalman | Imm
-        if params.motion_model == "imm":
-            w0 = math.radians(params.turn_rate_dps)
-            w_max = math.radians(params.max_turn_rate_dps)
-            w_var = math.radians(TURN_RATE_SIGMA_DPS) ** 2
-            turn = ModelSpec("ct", params.turn_accel_psd, params.turn_rate_psd,
-                             omega_max=w_max)
-            self.kf = Imm([ModelSpec("ct", params.accel_psd, params.arc_rate_psd,
-                                     omega_max=w_max),
-                           ModelSpec("cv", params.maneuver_accel_psd), turn,
-                           turn._replace(q_omega=w_var / params.turn_sojourn_s, omega0=w0,
-                                         omega0_var=w_var),
-                           turn._replace(q_omega=w_var / params.turn_sojourn_s, omega0=-w0,
-                                         omega0_var=w_var)],
-                          (params.straight_sojourn_s, params.maneuver_sojourn_s,
-                           params.turn_sojourn_s, params.turn_sojourn_s, params.turn_sojourn_s),
-                          (0.6, 0.1, 0.1, 0.1, 0.1))
-        else:
-            self.kf = CvKalman(params.accel_psd)
+        self.kf: CvKalman | Imm = (imm_bank(params) if params.motion_model == "imm"
+                                   else CvKalman(params.accel_psd))
         self.rls = LineRls(params.rls_forgetting, params.turn_cusum_drift,
                            params.turn_cusum_threshold, params.turn_holdoff_s)
         self.clock = TimeMap(params.clock_tol_s, params.feed_latency_s)
