@@ -10,6 +10,7 @@ Modules, in data-flow order:
 * :mod:`zarco_core.auv_messages` – AcousticEvent, BuoyStatus, AuvFix, AuvTrack,
   TrackFlags;
 * :mod:`.params` – TrackerParams / the derived Network (also the config schema);
+* :mod:`.layout` – beacons nearly on one line (the mirror side unobservable);
 * :mod:`.timemap` – the acoustic UTC clock mapped onto the runtime clock;
 * :mod:`.cycles` – I/R/I cycle assembly with gates and drop counters;
 * :mod:`.fix` – ranges, emission time, motion-bias correction, circle and

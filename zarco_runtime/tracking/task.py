@@ -7,7 +7,8 @@ it stale and then lost.  The AUV's plan (:class:`AuvPlan`, from the
 supervisor) goes to the tracker's plan matcher, whose news (the AUV on its
 plan, off it, back on it) goes out as ``mission`` events; a lawnmower the
 tracker inferred without a plan given goes out as an :class:`AuvPlan` of
-source ``tracker`` (:mod:`.plan_infer`).
+source ``tracker`` (:mod:`.plan_infer`).  Beacons nearly on one line
+(:mod:`.layout`) are told as a ``mission`` event when tracking starts.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from zarco_core.auv_messages import AcousticEvent, AuvPlan, BuoyStatus
 from zarco_core.bus import Bus, Listen
 from zarco_core.clock import Clock
 from zarco_core.messages import Event
+from zarco_runtime.tracking.layout import line_warning
 from zarco_runtime.tracking.params import TrackerParams
 from zarco_runtime.tracking.plan import INFERRED_SOURCE
 from zarco_runtime.tracking.tracker import AuvTracker
@@ -68,7 +70,13 @@ class Tracking:
         events.clear()
 
     async def run(self) -> None:
-        """Age the track once a second (publishes it, lost or not)."""
+        """Tell the operator when the beacons lie nearly on one line
+        (:mod:`.layout`), then age the track once a second (publishes it,
+        lost or not)."""
+        net = self.tracker.net0
+        warning = line_warning(net.north, net.east)
+        if warning is not None:
+            self.bus.publish(Event(self.clock.now(), "mission", warning, "tracker"))
         while True:
             await asyncio.sleep(TICK_S)
             tr = self.tracker.tick(self.clock.now())
