@@ -29,7 +29,6 @@ Progress per mission on stderr; one JSON line at the end.
 from __future__ import annotations
 
 import argparse
-import bisect
 import json
 import math
 import statistics
@@ -40,6 +39,8 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
@@ -49,19 +50,16 @@ VEL_WINDOW_S = 1.0
 
 
 class Truth:
-    """The AUV's true path (time s, north m, east m) of one run, interpolated."""
+    """The AUV's true path (time s, north m, east m) of one run, interpolated
+    linearly (held at its ends)."""
 
     def __init__(self, log: list[tuple[float, float, float, float]]) -> None:
-        self.t = [r[0] for r in log]
-        self.log = log
+        self.t = np.array([r[0] for r in log])
+        self.x = np.array([r[1] for r in log])
+        self.y = np.array([r[2] for r in log])
 
     def position(self, t: float) -> tuple[float, float]:
-        log, ts = self.log, self.t
-        j = min(max(bisect.bisect_left(ts, t), 1), len(log) - 1)
-        a, b = log[j - 1], log[j]
-        w = (t - a[0]) / (b[0] - a[0]) if b[0] > a[0] else 0.0
-        w = min(max(w, 0.0), 1.0)
-        return a[1] + w * (b[1] - a[1]), a[2] + w * (b[2] - a[2])
+        return float(np.interp(t, self.t, self.x)), float(np.interp(t, self.t, self.y))
 
     def velocity(self, t: float) -> tuple[float, float]:
         h = 0.5 * VEL_WINDOW_S
