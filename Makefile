@@ -1,5 +1,9 @@
 # Two entry points (see README): `make sim` and `make test`.
 PY ?= python3
+# test processes (pytest-xdist): most of the suite's time is real-time tests
+# waiting, so two run side by side even on CI's 2 cores; a test file stays in
+# one process (its module fixtures, often a whole simulated mission, run once)
+TEST_JOBS ?= 2
 VENV := .venv
 BIN := $(VENV)/bin
 
@@ -17,7 +21,7 @@ sim: setup
 	$(BIN)/zarco sim config/scenarios/rectangle.toml --report out/rectangle.json --plot out/rectangle.png
 
 test: setup lint
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_JOBS) --dist loadfile
 
 lint: setup
 	$(BIN)/ruff check .
