@@ -43,6 +43,15 @@ is on ``lookahead_m`` ahead of the target — tracked by the line controller at
 the AUV's speed, the surge force adding ``paper_k_s``·(s_AUV − s) +
 ``paper_k_i``·∫(s_AUV − s) dt, either sign.
 
+Before the AUV is first heard, with its a-priori plan, the boat goes to the
+plan's start (``ABOVE_STATION_M`` ahead of it on the first leg, facing that
+leg) and holds there: the AUV waits for its mission at its start, and the
+boat is then above it when its first fixes come instead of setting off only
+then (tens of metres at under 2 m/s).  A plan whose start is further than
+``PLAN_START_MAX_M`` is not gone to (more likely a plan in the wrong place
+than a launch that far).  Without a plan the boat waits where it is: the
+tracker's prior only resolves mirror fixes, and its default is no position.
+
 When the track is lost (no fix for the configured time, a covariance too
 large, or the tracker says so) the boat slows down and holds the position
 where it lost it, and resumes following when the track is back.  Above a
@@ -139,6 +148,9 @@ STATION_GAP_S = 0.5
 STATION_TILT_RAD = math.radians(45.0)
 STATION_TILT_M = 3.0
 STATION_SWAP_RAD = math.radians(20.0)
+#: before the AUV is first heard, a plan's start within this (m) of the boat
+#: is gone to
+PLAN_START_MAX_M = 200.0
 #: above a still AUV, its plan's course is kept this long (s) after its track
 #: was last on the plan
 PLAN_COURSE_HOLD_S = 10.0
@@ -271,6 +283,10 @@ class FollowGuidance:
         if reason or track is None:
             self.target = None
             self.motion.track_lost()
+            if track is None:
+                start = self._to_plan_start(t, x, y)
+                if start is not None:
+                    return start
             return self._hold(x, y, reason or "no AUV track yet")
         raw = target_now(track, t, cfg.line_gate_m, math.radians(cfg.line_course_gate_deg))
         tg = raw
@@ -500,6 +516,36 @@ class FollowGuidance:
         self._sm_plan = (t, path.s, path.cross)
         self._sm = (t, tg.x, tg.y)  # plan-free following continues from here
         return tg, path
+
+    def _to_plan_start(self, t: float, x: float, y: float) -> FollowState | None:
+        """Before the AUV is first heard: go to its plan's start and hold there
+        (module docstring), the station ``ABOVE_STATION_M`` ahead on the first
+        leg, facing it; None without a (given) plan, or with its start further
+        than ``PLAN_START_MAX_M``."""
+        plan, msg = self.plan, self._plan_msg
+        if plan is None or msg is None or msg.source == INFERRED_SOURCE:
+            return None
+        sx, sy, course = plan.point_at(0.0)
+        gx = sx + ABOVE_STATION_M * math.cos(course)
+        gy = sy + ABOVE_STATION_M * math.sin(course)
+        dx, dy = gx - x, gy - y
+        dist = math.hypot(dx, dy)
+        if dist > PLAN_START_MAX_M:
+            return None
+        self.mode = "wait"
+        why = "going to the AUV plan's start"
+        if dist <= self.cfg.hold_radius_m:
+            self._psi_ref = None
+            return FollowState("wait", None, 0.0, 0.0, 0.0, why, "plan",
+                               heading_rad=self._station_heading(course, dx, dy),
+                               station=(gx, gy))
+        psi = self._steer(math.atan2(dy, dx), t, lead_cog=False)
+        self._new_leg(psi)
+        v_ref = min(self.cfg.max_speed_mps,
+                    max(self.cfg.hold_speed_mps, dist / self.cfg.catchup_tau_s))
+        c, s = math.cos(psi), math.sin(psi)
+        return FollowState("wait", Leg(self.leg_id, x, y, x + dist * c, y + dist * s, v_ref),
+                           0.0, 0.0, v_ref, why, "plan")
 
     def _smooth(self, tg: Target, t: float) -> Target:
         """The target's position low-passed over ``target_tau_s`` about its own
