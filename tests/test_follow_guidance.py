@@ -578,3 +578,29 @@ def test_on_its_plan_a_hovering_auv_is_taken_to_move_only_with_its_filter_moving
                              kf_vx_mps=1.5 * follow_motion.PLAN_KF_MOVING_MPS)
     g.update(tr, t, 1.0, 0.0)
     assert g.moving
+
+
+def test_before_the_auv_is_heard_the_boat_goes_to_its_plans_start() -> None:
+    """No track yet, a plan given: the boat is sent to the plan's start (the
+    station ``ABOVE_STATION_M`` ahead on the first leg) and, there, holds that
+    station facing the first leg; a plan the tracker guessed, a plan whose start
+    is 300 m off, or no plan: it waits where it is."""
+    plan = ((50.0, 20.0), (50.0, 120.0), (70.0, 120.0))  # first leg east (course 90°)
+    station = (50.0, 20.0 + ABOVE_STATION_M)
+    g = FollowGuidance(FollowSettings())
+    g.set_plan(AuvPlan(0.0, plan, "mission"))
+    st = g.update(None, 1.0, 20.0, 0.0)
+    assert st.mode == "wait" and st.leg is not None and st.speed_ref_mps > 0.5
+    assert "plan's start" in st.reason
+    # the leg points at the station from the boat
+    bearing = math.atan2(station[1] - 0.0, station[0] - 20.0)
+    assert abs(math.remainder(st.leg.course_rad - bearing, math.tau)) < math.radians(1.0)
+    there = g.update(None, 30.0, station[0] + 0.5, station[1] - 0.5)
+    assert there.leg is None and there.station == pytest.approx(station)
+    assert abs(math.remainder(there.heading_rad - math.pi / 2, math.tau)) < math.radians(46.0)
+    for points, source in ((plan, "tracker"),
+                           (tuple((n + 300.0, e) for n, e in plan), "mission"), ((), "")):
+        w = FollowGuidance(FollowSettings())
+        w.set_plan(AuvPlan(0.0, points, source))
+        st = w.update(None, 1.0, 20.0, 0.0)
+        assert st.leg is None and st.speed_ref_mps == 0.0 and st.station is None, source

@@ -50,3 +50,36 @@ def test_above_an_auv_waiting_on_its_plan_the_boat_keeps_within_4_m(seed: int) -
     assert len(d) > 100
     assert float(np.median(d)) <= 3.5, f"median {np.median(d):.2f} m"
     assert float(np.percentile(d, 95)) <= 6.0, f"p95 {np.percentile(d, 95):.2f} m"
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_before_the_auv_is_heard_the_boat_waits_above_its_plans_start(seed: int) -> None:
+    """The buoy's feed silent for the first 40 s (the AUV not yet heard), the
+    boat 20-30 m from the start of the AUV's plan: with the plan it is within
+    4 m of the AUV when the first fixes come; without it, it has waited where it
+    was (more than 15 m off; no current here to drift it)."""
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(0.0, math.tau)
+    x0, y0 = 150.0 + rng.uniform(-20, 20), 120.0 + rng.uniform(-20, 20)
+    pts = [[round(x0, 2), round(y0, 2)],
+           [round(x0 + 60.0 * math.cos(a), 2), round(y0 + 60.0 * math.sin(a), 2)]]
+    b, r = rng.uniform(0.0, math.tau), rng.uniform(20.0, 30.0)
+    sets = [f"auv.waypoints={json.dumps(pts)}", "auv.speed_mps=0.8", "auv.start_delay_s=90",
+            f"world.x_m={x0 + r * math.cos(b):.2f}", f"world.y_m={y0 + r * math.sin(b):.2f}",
+            f"runtime.tracker.prior_north_m={x0:.2f}", f"runtime.tracker.prior_east_m={y0:.2f}",
+            'faults=[{kind="silence", device="buoy", at_s=0.0, duration_s=40.0}]',
+            "world.current.speed_mps=0.0", "scenario.max_duration_s=60"]
+    for plan in (True, False):
+        res = run_scenario(load_scenario(
+            FOLLOW, [*sets, f"mission.auv_plan={json.dumps(pts)}"] if plan else sets, seed))
+        log, auv = res.log, res.extra["auv_log"]
+        acquired = res.report["acquired_s"]
+        assert acquired is not None and acquired >= 40.0
+        d = [math.hypot(bx - a_[1], by - a_[2])
+             for t, bx, by, a_ in zip(log.t, log.x, log.y, auv, strict=False)
+             if abs(t - acquired) <= 0.5]
+        assert d, "no sample at acquisition"
+        if plan:
+            assert max(d) <= 4.0, f"{max(d):.2f} m from the AUV at its first fix"
+        else:
+            assert min(d) > 15.0, f"{min(d):.2f} m: the boat moved before the AUV was heard"
