@@ -50,7 +50,8 @@ boat is then above it when its first fixes come instead of setting off only
 then (tens of metres at under 2 m/s).  A plan whose start is further than
 ``PLAN_START_MAX_M`` is not gone to (more likely a plan in the wrong place
 than a launch that far).  Without a plan the boat waits where it is: the
-tracker's prior only resolves mirror fixes, and its default is no position.
+tracker's prior only resolves mirror fixes, and its default (0, 0) says
+nothing of where the AUV is.
 
 When the track is lost (no fix for the configured time, a covariance too
 large, or the tracker says so) the boat slows down and holds the position
