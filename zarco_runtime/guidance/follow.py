@@ -540,13 +540,10 @@ class FollowGuidance:
             return FollowState("wait", None, 0.0, 0.0, 0.0, why, "plan",
                                heading_rad=self._station_heading(course, dx, dy),
                                station=(gx, gy))
-        psi = self._steer(math.atan2(dy, dx), t, lead_cog=False)
-        self._new_leg(psi)
         v_ref = min(self.cfg.max_speed_mps,
                     max(self.cfg.hold_speed_mps, dist / self.cfg.catchup_tau_s))
-        c, s = math.cos(psi), math.sin(psi)
-        return FollowState("wait", Leg(self.leg_id, x, y, x + dist * c, y + dist * s, v_ref),
-                           0.0, 0.0, v_ref, why, "plan")
+        return FollowState("wait", self._leg_to(gx, gy, t, x, y, v_ref), 0.0, 0.0, v_ref,
+                           why, "plan")
 
     def _smooth(self, tg: Target, t: float) -> Target:
         """The target's position low-passed over ``target_tau_s`` about its own
@@ -601,18 +598,23 @@ class FollowGuidance:
             self._psi_ref = None
             return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
                                heading_rad=face)
-        psi = self._steer(math.atan2(dy, dx), t, lead_cog=False)
-        if self._psi_leg is None or abs(math.remainder(psi - self._psi_leg, math.tau)) > \
-                math.radians(cfg.new_line_deg):
-            self.leg_id += 1
-            self._psi_leg = psi
         away = max(0.0, (tg.vx * dx + tg.vy * dy) / dist)
         v_ref = min(cfg.max_speed_mps, max(cfg.hold_speed_mps,
                                            away + dist / cfg.catchup_tau_s))
+        return FollowState("follow", self._leg_to(gx, gy, t, x, y, v_ref), 0.0, 0.0, v_ref,
+                           reason or "above a still AUV", tg.source)
+
+    def _leg_to(self, gx: float, gy: float, t: float, x: float, y: float,
+                v_ref: float) -> Leg:
+        """A virtual leg from the boat at (``x``, ``y``) to (``gx``, ``gy``) (NED
+        m) at ``v_ref`` (m/s): its course rate-limited, not held near the boat's
+        course over ground (:meth:`_steer`), a new leg when it moved further than
+        ``new_line_deg``."""
+        dist = math.hypot(gx - x, gy - y)
+        psi = self._steer(math.atan2(gy - y, gx - x), t, lead_cog=False)
+        self._new_leg(psi)
         c, s = math.cos(psi), math.sin(psi)
-        leg = Leg(self.leg_id, x, y, x + dist * c, y + dist * s, v_ref)
-        return FollowState("follow", leg, 0.0, 0.0, v_ref, reason or "above a still AUV",
-                           tg.source)
+        return Leg(self.leg_id, x, y, x + dist * c, y + dist * s, v_ref)
 
     def _station_heading(self, course: float, ex: float, ey: float) -> float:
         """The heading (rad) to hold a station (``ex``, ``ey``: NED m from the
