@@ -527,8 +527,7 @@ class FollowGuidance:
         if plan is None or msg is None or msg.source == INFERRED_SOURCE:
             return None
         sx, sy, course = plan.point_at(0.0)
-        gx = sx + ABOVE_STATION_M * math.cos(course)
-        gy = sy + ABOVE_STATION_M * math.sin(course)
+        gx, gy = _station_ahead(sx, sy, course)
         dx, dy = gx - x, gy - y
         dist = math.hypot(dx, dy)
         if dist > PLAN_START_MAX_M:
@@ -540,8 +539,7 @@ class FollowGuidance:
             return FollowState("wait", None, 0.0, 0.0, 0.0, why, "plan",
                                heading_rad=self._station_heading(course, dx, dy),
                                station=(gx, gy))
-        v_ref = min(self.cfg.max_speed_mps,
-                    max(self.cfg.hold_speed_mps, dist / self.cfg.catchup_tau_s))
+        v_ref = self._closing_speed(dist)
         return FollowState("wait", self._leg_to(gx, gy, t, x, y, v_ref), 0.0, 0.0, v_ref,
                            why, "plan")
 
@@ -579,7 +577,7 @@ class FollowGuidance:
             cc, sc = math.cos(course), math.sin(course)
             dx, dy = tg.x - x, tg.y - y
             lead, side = -(dx * cc + dy * sc), -dx * sc + dy * cc
-            gx, gy = tg.x + ABOVE_STATION_M * cc, tg.y + ABOVE_STATION_M * sc
+            gx, gy = _station_ahead(tg.x, tg.y, course)
             held = self._station_t is not None and 0.0 <= t - self._station_t <= STATION_GAP_S
             if (math.hypot(gx - x, gy - y) <= cfg.hold_radius_m
                     or (held and -ABOVE_BEHIND_M <= lead <= ABOVE_AHEAD_M
@@ -598,11 +596,16 @@ class FollowGuidance:
             self._psi_ref = None
             return FollowState("follow", None, 0.0, 0.0, 0.0, "above a still AUV", tg.source,
                                heading_rad=face)
-        away = max(0.0, (tg.vx * dx + tg.vy * dy) / dist)
-        v_ref = min(cfg.max_speed_mps, max(cfg.hold_speed_mps,
-                                           away + dist / cfg.catchup_tau_s))
+        v_ref = self._closing_speed(dist, max(0.0, (tg.vx * dx + tg.vy * dy) / dist))
         return FollowState("follow", self._leg_to(gx, gy, t, x, y, v_ref), 0.0, 0.0, v_ref,
                            reason or "above a still AUV", tg.source)
+
+    def _closing_speed(self, dist: float, away: float = 0.0) -> float:
+        """The speed (m/s) to go to a point ``dist`` metres off that moves away
+        at ``away`` m/s: that speed plus the gap over ``catchup_tau_s``, between
+        ``hold_speed_mps`` and ``max_speed_mps``."""
+        cfg = self.cfg
+        return min(cfg.max_speed_mps, max(cfg.hold_speed_mps, away + dist / cfg.catchup_tau_s))
 
     def _leg_to(self, gx: float, gy: float, t: float, x: float, y: float,
                 v_ref: float) -> Leg:
@@ -698,6 +701,12 @@ class FollowGuidance:
         c, s = math.cos(psi), math.sin(psi)
         leg = Leg(-1, x - c, y - s, x + dist * c, y + dist * s, self.cfg.hold_speed_mps)
         return FollowState(self.mode, leg, 0.0, 0.0, self.cfg.hold_speed_mps, reason)
+
+
+def _station_ahead(x: float, y: float, course: float) -> tuple[float, float]:
+    """The station above an AUV at (``x``, ``y``) (NED m) that will leave on
+    ``course`` (rad): ``ABOVE_STATION_M`` ahead of it on that course."""
+    return x + ABOVE_STATION_M * math.cos(course), y + ABOVE_STATION_M * math.sin(course)
 
 
 def _settling(track: AuvTrack, kf_now: tuple[float, float], tg: Target, path: PlanPath,
