@@ -4,6 +4,7 @@ it follows, holding above a still AUV."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import pytest
@@ -397,10 +398,13 @@ def test_a_track_lost_and_back_is_not_a_set_off() -> None:
 def test_a_reversal_on_its_plan_is_turned_the_way_the_auv_turns() -> None:
     """At a corner of its plan where the AUV turns back (177° to port), the
     tracker's progress along the plan steps past the corner and the aim point
-    lands on the new leg just to starboard of straight behind a boat a little
-    to port of the path: the leg turns to port with the AUV, not the shorter
-    way round to starboard, which took the boat away from the AUV's turn
-    circle (a campaign mission: its peak distance 8.8 m, 7.1 m turning with it)."""
+    lands just to starboard of straight behind a boat a little to port of the
+    path: the leg turns to port with the AUV, not the shorter way round to
+    starboard, which took the boat away from the AUV's turn circle (a
+    campaign mission: its peak distance 8.8 m, 7.1 m turning with it).  The
+    AUV's path there is its guidance flown (it starts its turn a turning
+    radius before the corner): the boat's leg turns to port with it from
+    before the corner, never to starboard."""
     g = FollowGuidance(FollowSettings())
     plan = ((-80.6, -14.0), (-184.6, -33.8), (-80.7, -7.9))
     g.set_plan(AuvPlan(0.0, plan, "mission"))
@@ -423,9 +427,12 @@ def test_a_reversal_on_its_plan_is_turned_the_way_the_auv_turns() -> None:
                       -32.86 + d * math.sin(c_in))
         assert st.leg is not None
         offs.append(math.degrees(math.remainder(st.leg.course_rad - c_in, math.tau)))
-    assert max(abs(o) for o in offs[:50]) < 3.0  # down the leg before the corner
-    # a second after the corner the leg has turned to port of the first leg's course
-    assert offs[-1] < -10.0
+    assert max(offs) < 3.0  # never to starboard
+    # turning to port as the AUV does, from before the corner
+    assert all(b <= a + 0.5 for a, b in itertools.pairwise(offs))
+    assert offs[49] < -10.0
+    # a second after the corner the leg has turned further to port
+    assert offs[-1] < offs[49] - 10.0
 
 
 def test_a_guessed_plan_target_run_away_from_the_filter_is_not_followed() -> None:

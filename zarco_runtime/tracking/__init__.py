@@ -28,8 +28,9 @@ Modules, in data-flow order:
 * :mod:`.maneuver` – manoeuvre detection (IMM state, arcs, cross-course
   CUSUM) and the turn declaration;
 * :mod:`.rls` – recursive least squares with forgetting on the line model;
-* :mod:`.plan`, :mod:`.plan_geometry`, :mod:`.plan_progress` – the AUV's
-  a-priori plan: its legs and rounded corners, which leg the AUV is on, its
-  progress along the plan, leaving and re-joining it;
+* :mod:`.plan`, :mod:`.plan_geometry`, :mod:`.plan_flown`,
+  :mod:`.plan_progress` – the AUV's a-priori plan: its legs and rounded
+  corners (the AUV's guidance flown where no arc fits), which leg the AUV is
+  on, its progress along the plan, leaving and re-joining it;
 * :mod:`.tracker` – the glue, track flags, aging and lost declaration.
 """

@@ -9,13 +9,18 @@ the last the path goes on straight along the first and last legs.
 An AUV does not turn on the spot: it rounds a corner, starting its turn
 before it and joining the next leg after it.  With a turning radius R
 (``radius`` below; 0: the sharp plan) corner k is rounded by the arc tangent
-to both legs, its tangent length a = R tan(|θ|/2), at most half of either
-leg (a tighter arc, then); a corner turning more than ``MAX_ROUND_DEG`` is
-left sharp (a reversal has no arc tangent to both legs).  The path
-coordinate stays the sharp plan's: the stretch [C − a, C + a] about corner C
-maps onto the arc linearly in angle, so a progress ``s`` means the same leg
-and corner whatever R is (:meth:`Plan.advance` walks metres of the rounded
-path).
+to both legs, its tangent length a = R tan(|θ|/2), where that fits: a
+corner turning at most ``MAX_ROUND_DEG``, a at most half of either leg.
+Where it does not — a sharper turn, up to a reversal, or a leg shorter than
+the arcs at its ends (the short leg of a lawnmower whose lines are closer
+than the AUV's turning circle) — the AUV swings out past the next line and
+its guidance brings it back: that stretch is its guidance flown
+(:mod:`.plan_flown`), from where it leaves the leg before the corner to where
+it is back on a leg, perhaps past several corners.  The path coordinate
+stays the sharp plan's: a rounded stretch [lo, hi] maps onto the arc (or
+the flown polyline) linearly in angle (in metres flown), so a progress
+``s`` means the same leg and corner whatever R is (:meth:`Plan.advance`
+walks metres of the rounded path).
 """
 
 from __future__ import annotations
@@ -24,14 +29,20 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from zarco_runtime.tracking.plan_flown import Flown, LegLine, fly, switch_m
+
 #: the most points a plan may have
 MAX_POINTS = 1000
 #: two consecutive points closer than this (m) are one point: refused
 MIN_LEG_M = 1.0
 #: a plan point further than this from the origin (m) is refused
 MAX_RANGE_M = 50_000.0
-#: corners turning more than this (deg) are not rounded
-MAX_ROUND_DEG = 135.0
+#: corners turning more than this (deg) are not rounded by an arc: the AUV's
+#: guidance is flown there (:mod:`.plan_flown`)
+MAX_ROUND_DEG = 90.0
+#: a corner after a leg longer than this plus 4 turning radii (m) is rounded
+#: alone: what the AUV flew about the corner before has ended on that leg
+SETTLE_LEGS_M = 100.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,6 +125,21 @@ class Arc:
         """Path coordinate per metre of arc (2a / (r|θ|), ≥ 1)."""
         return 2.0 * self.a / (self.r * abs(self.theta))
 
+    @property
+    def lo(self) -> float:
+        """The path coordinate where the arc starts (m)."""
+        return self.s_c - self.a
+
+    @property
+    def hi(self) -> float:
+        """The path coordinate where the arc ends (m)."""
+        return self.s_c + self.a
+
+
+#: how a corner is rounded: an arc, the AUV's guidance flown (a reversal, a
+#: corner too tight for its arc), or sharp (None)
+Rounding = Arc | Flown | None
+
 
 class PlanError(ValueError):
     """Why some points are not a plan: the point (``index``, None for the whole
@@ -154,7 +180,7 @@ class Plan:
     turning radius R flies along them (module docstring).  Raises ValueError
     (:func:`check_points`) for points that are not a plan."""
 
-    __slots__ = ("_arcs", "legs", "length_m", "points")
+    __slots__ = ("_arcs", "_lines", "legs", "length_m", "points")
 
     def __init__(self, points: list[tuple[float, float]] | tuple[tuple[float, float], ...]
                  ) -> None:
@@ -175,7 +201,9 @@ class Plan:
             s += length
         self.legs = tuple(legs)
         self.length_m = s
-        self._arcs: dict[float, tuple[Arc | None, ...]] = {}
+        self._arcs: dict[float, dict[int, Rounding]] = {}
+        self._lines = [LegLine(lg.n0, lg.e0, lg.ux, lg.uy, lg.length_m, lg.s0_m)
+                       for lg in legs]
 
     def turn_rad(self, k: int) -> float:
         """The course change at the end of leg ``k`` (rad, + to starboard); 0
@@ -212,44 +240,95 @@ class Plan:
 
     # ------------------------------------------------------------ rounding
 
-    def arcs(self, radius: float) -> tuple[Arc | None, ...]:
-        """The rounded corners for turning radius ``radius`` (m): one per corner,
-        None where it stays sharp."""
-        got = self._arcs.get(radius)
-        if got is not None:
-            return got
-        out: list[Arc | None] = []
+    def arcs(self, radius: float) -> tuple[Rounding, ...]:
+        """How each corner is rounded for turning radius ``radius`` (m)
+        (:meth:`corner`)."""
+        return tuple(self.corner(k, radius) for k in range(len(self.legs) - 1))
+
+    def corner(self, k: int, radius: float) -> Rounding:
+        """How corner ``k`` is rounded for turning radius ``radius`` (m): an
+        :class:`Arc` where one tangent to both legs fits, the AUV's guidance
+        :class:`~.plan_flown.Flown` where none does (a turn of more than
+        ``MAX_ROUND_DEG``, a leg shorter than the arcs at its ends; one stretch
+        may fly several corners, each holding it), None for a sharp plan or a
+        corner that does not turn.  Worked out when first asked, from the
+        corner before it whose leg is long enough that nothing flown before
+        it reaches it (``SETTLE_LEGS_M``), and kept: a flown stretch takes a
+        few milliseconds."""
+        done = self._arcs.get(radius)
+        if done is None:
+            if len(self._arcs) >= 64:
+                self._arcs.clear()
+            done = self._arcs[radius] = {}
+        if k in done:
+            return done[k]
+        j = k
+        settle = SETTLE_LEGS_M + 4.0 * radius
+        while j > 0 and j - 1 not in done and self.legs[j].length_m < settle:
+            j -= 1
+        while k not in done:
+            self._round(j, done, radius)
+            while j in done:
+                j += 1
+        return done[k]
+
+    def _needs_flight(self, k: int, radius: float) -> bool:
+        """Whether no arc of ``radius`` (m) rounds corner ``k``."""
+        th = abs(self.turn_rad(k))
+        return th > math.radians(MAX_ROUND_DEG) or radius * math.tan(th / 2.0) > 0.5 * min(
+            self.legs[k].length_m, self.legs[k + 1].length_m)
+
+    def _round(self, k: int, done: dict[int, Rounding], radius: float) -> None:
+        """Round corner ``k`` into ``done``, and the corners its stretch flies."""
         legs = self.legs
-        for k in range(len(legs) - 1):
-            th = self.turn_rad(k)
-            if radius <= 0.0 or abs(th) < 1e-3 or abs(th) > math.radians(MAX_ROUND_DEG):
-                out.append(None)
-                continue
-            t = math.tan(abs(th) / 2.0)
-            a = min(radius * t, 0.5 * legs[k].length_m, 0.5 * legs[k + 1].length_m)
-            r = a / t
+        th = self.turn_rad(k)
+        if radius <= 0.0 or abs(th) < 1e-3:
+            done[k] = None
+            return
+        if not self._needs_flight(k, radius):
+            a = radius * math.tan(abs(th) / 2.0)
             lg = legs[k]
             x1, y1 = lg.point(lg.length_m - a)
             sg = 1.0 if th > 0.0 else -1.0
-            cx, cy = x1 - sg * r * lg.uy, y1 + sg * r * lg.ux
-            out.append(Arc(legs[k + 1].s0_m, a, r, cx, cy, lg.course_rad, th))
-        arcs = tuple(out)
-        if len(self._arcs) < 64:
-            self._arcs[radius] = arcs
-        return arcs
+            cx, cy = x1 - sg * radius * lg.uy, y1 + sg * radius * lg.ux
+            arc = Arc(legs[k + 1].s0_m, a, radius, cx, cy, lg.course_rad, th)
+            nxt = k + 1
+            # the next corner flown, from before this arc ends: fly both
+            if not (nxt < len(legs) - 1 and abs(self.turn_rad(nxt)) >= 1e-3
+                    and self._needs_flight(nxt, radius)
+                    and arc.hi > legs[nxt + 1].s0_m - switch_m(radius, self.turn_rad(nxt))):
+                done[k] = arc
+                return
+        flown, back_on = fly(self._lines, k, radius)
+        for j in range(k, back_on):
+            done[j] = flown
 
-    def _arc_at(self, s: float, radius: float) -> Arc | None:
-        """The arc whose stretch holds ``s``, if any."""
+    def _rounded(self, k: int, radius: float) -> Rounding:
+        """Corner ``k``'s rounding (:meth:`corner`); None beyond the corners or
+        for a sharp plan."""
+        if radius <= 0.0 or not 0 <= k < len(self.legs) - 1:
+            return None
+        return self.corner(k, radius)
+
+    def _arc_at(self, s: float, radius: float) -> Rounding:
+        """The rounded stretch that holds ``s``, if any."""
         if radius <= 0.0 or len(self.legs) < 2:
             return None
-        leg = self.leg_at(s)
-        arcs = self.arcs(radius)
-        k = leg.index
-        if k > 0 and (arc := arcs[k - 1]) is not None and s < arc.s_c + arc.a:
-            return arc
-        if k < len(arcs) and (arc := arcs[k]) is not None and s > arc.s_c - arc.a:
-            return arc
+        k = self.leg_at(s).index
+        for j in (k - 1, k):
+            arc = self._rounded(j, radius)
+            if arc is not None and arc.lo < s < arc.hi:
+                return arc
         return None
+
+    def span(self, k: int, radius: float) -> tuple[float, float]:
+        """The path coordinates (m) between which corner ``k`` is rounded with
+        turning radius ``radius`` (the corner's own, sharp)."""
+        arc = self._rounded(k, radius)
+        if arc is not None:
+            return arc.lo, arc.hi
+        c = self.legs[k + 1].s0_m if 0 <= k < len(self.legs) - 1 else math.inf
+        return c, c
 
     def point_at(self, s: float, cross: float = 0.0, radius: float = 0.0
                  ) -> tuple[float, float, float]:
@@ -262,10 +341,21 @@ class Plan:
         x, y = leg.point(s - leg.s0_m, cross)
         return x, y, leg.course_rad
 
+    def _next_rounded(self, s: float, radius: float, step: float) -> Rounding:
+        """The first rounded stretch wholly after ``s`` (``step`` > 0) or
+        wholly before it (< 0), if any."""
+        k = self.leg_at(s).index
+        corners = range(k, len(self.legs) - 1) if step > 0 else range(k - 1, -1, -1)
+        for j in corners:
+            arc = self._rounded(j, radius)
+            if arc is not None and (arc.lo >= s if step > 0 else arc.hi <= s):
+                return arc
+        return None
+
     def advance(self, s: float, dist: float, radius: float = 0.0) -> float:
         """The path coordinate ``dist`` metres of path (either sign) on from
-        ``s``: on an arc a metre of path is more than a metre of the sharp
-        plan's coordinate."""
+        ``s``: on a rounded stretch a metre of path is ``stretch`` metres of
+        the sharp plan's coordinate."""
         if radius <= 0.0 or dist == 0.0:
             return s + dist
         step = 1.0 if dist > 0.0 else -1.0
@@ -273,28 +363,19 @@ class Plan:
         for _ in range(2 * len(self.legs) + 2):
             arc = self._arc_at(s, radius)
             if arc is not None:
-                lo, hi = arc.s_c - arc.a, arc.s_c + arc.a
-                room = (hi - s) if step > 0 else (s - lo)
+                room = (arc.hi - s) if step > 0 else (s - arc.lo)
                 if left * arc.stretch <= room:
                     return s + step * left * arc.stretch
                 left -= room / arc.stretch
-                s = hi if step > 0 else lo
-                s += step * 1e-9
+                s = (arc.hi if step > 0 else arc.lo) + step * 1e-9
                 continue
-            # a straight stretch, up to the next arc
-            leg = self.leg_at(s)
-            arcs = self.arcs(radius)
+            # a straight stretch, up to the next rounded one
+            nxt = self._next_rounded(s, radius, step)
             if step > 0:
-                k = leg.index
-                nxt = arcs[k] if k < len(arcs) else None
-                end = nxt.s_c - nxt.a if nxt is not None else (
-                    leg.s0_m + leg.length_m if k + 1 < len(self.legs) else math.inf)
+                end = nxt.lo if nxt is not None else math.inf
                 room = end - s
             else:
-                k = leg.index
-                prv = arcs[k - 1] if k > 0 else None
-                end = prv.s_c + prv.a if prv is not None else (leg.s0_m if k > 0
-                                                              else -math.inf)
+                end = nxt.hi if nxt is not None else -math.inf
                 room = s - end
             if left <= room:
                 return s + step * left
@@ -309,16 +390,16 @@ class Plan:
         the signed distance to it (> 0 to starboard of the path there)."""
         best = (math.inf, s_lo, 0.0)
         legs = self.legs
-        arcs = self.arcs(radius) if radius > 0.0 else ()
         k0 = self.leg_at(s_lo).index
         k1 = self.leg_at(s_hi).index
+        seen: set[int] = set()
         for k in range(max(k0 - 1, 0), k1 + 1):
             leg = legs[k]
-            prv = arcs[k - 1] if arcs and k > 0 else None
-            nxt = arcs[k] if arcs and k < len(arcs) else None
-            lo = -math.inf if k == 0 else (prv.a if prv is not None else 0.0)
+            prv = self._rounded(k - 1, radius)
+            nxt = self._rounded(k, radius)
+            lo = -math.inf if k == 0 else (prv.hi - leg.s0_m if prv is not None else 0.0)
             hi = (math.inf if k == len(legs) - 1
-                  else leg.length_m - (nxt.a if nxt is not None else 0.0))
+                  else (nxt.lo if nxt is not None else leg.s0_m + leg.length_m) - leg.s0_m)
             a0 = max(s_lo - leg.s0_m, lo)
             a1 = min(s_hi - leg.s0_m, hi)
             if a0 <= a1:
@@ -328,8 +409,11 @@ class Plan:
                 d = math.hypot(x - px, y - py)
                 if d < best[0]:
                     best = (d, leg.s0_m + a, math.copysign(d, cross))
-            if nxt is not None and nxt.s_c + nxt.a >= s_lo and nxt.s_c - nxt.a <= s_hi:
-                d, s, c = nxt.nearest(x, y)
+            if (nxt is not None and id(nxt) not in seen and nxt.hi >= s_lo
+                    and nxt.lo <= s_hi):
+                seen.add(id(nxt))
+                d, s, c = (nxt.nearest(x, y, s_lo, s_hi) if isinstance(nxt, Flown)
+                           else nxt.nearest(x, y))
                 if d < best[0] and s_lo <= s <= s_hi:
                     best = (d, s, c)
         return best[1], best[2]

@@ -30,7 +30,8 @@ from zarco_core.auv_messages import AuvFix
 from zarco_runtime.tracking.plan_geometry import Plan
 
 #: the turning radii (m) the AUV's path is chosen from
-RADII_M = (0.0, 2.0, 4.0, 6.0, 8.0, 11.0, 14.0, 18.0)
+RADII_M = (0.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0,
+           12.5, 14.0, 16.0, 18.0)
 #: gate of a fix's path coordinate (χ², 1 degree of freedom)
 ALONG_GATE_CHI2 = 16.0
 #: fixes refused in a row after which the progress restarts from the fix
@@ -95,6 +96,10 @@ class AlongPlan:
     off_pos: float = 0.0
     off_neg: float = 0.0
     last_offset: float = 0.0
+    #: the offset from the path on the last straight stretch (m): what the
+    #: radii's paths are scored against about a corner, where ``cross`` follows
+    #: the path in use wherever the AUV is
+    steady_cross: float = 0.0
 
     @property
     def off_path(self) -> bool:
@@ -111,7 +116,7 @@ class AlongPlan:
         near = min(range(len(RADII_M)), key=lambda i: abs(RADII_M[i] - radius))
         scores = [RADIUS_PRIOR * abs(i - near) for i in range(len(RADII_M))]
         return cls(plan, t, s, u, [[s_var, 0.0], [0.0, 0.2 ** 2]], cross, RADII_M[near],
-                   0, scores)
+                   0, scores, steady_cross=cross)
 
     def predict(self, t: float, q: float) -> None:
         """To time ``t`` (s), with ``q`` the white-acceleration density of the
@@ -142,31 +147,27 @@ class AlongPlan:
     def near_corner(self) -> bool:
         """Whether the progress is about a corner (where the AUV turns)."""
         plan = self.plan
-        widest = plan.arcs(RADII_M[-1])
         k = plan.leg_at(self.s).index
         for j in (k - 1, k):
             if 0 <= j < len(plan.legs) - 1:
-                arc = widest[j]
-                a = arc.a if arc is not None else 0.0
-                if abs(self.s - plan.legs[j + 1].s0_m) <= a + CORNER_MARGIN_M:
+                lo, hi = plan.span(j, RADII_M[-1])
+                if lo - CORNER_MARGIN_M <= self.s <= hi + CORNER_MARGIN_M:
                     return True
         return False
 
     def on_straight(self, margin: float) -> int:
         """The leg (index) whose straight part the progress is on — past the
-        arc (at the AUV's own turning radius) of the corner before it and short
-        of the next one, by ``margin`` (m) — else −1."""
+        rounding (at the AUV's own turning radius) of the corner before it and
+        short of the next one, by ``margin`` (m) — else −1."""
         plan = self.plan
-        arcs = plan.arcs(self.radius)
         leg = plan.leg_at(self.s)
         k = leg.index
-        before = arcs[k - 1] if 0 < k <= len(arcs) else None
-        after = arcs[k] if k < len(arcs) else None
-        a0 = (before.a if before is not None else 0.0) + margin
-        a1 = (after.a if after is not None else 0.0) + margin if k + 1 < len(plan.legs) else 0.0
-        if leg.length_m - a0 - a1 < STRAIGHT_MIN_M:
+        lo = (plan.span(k - 1, self.radius)[1] if k > 0 else leg.s0_m) + margin
+        hi = (plan.span(k, self.radius)[0] - margin if k + 1 < len(plan.legs)
+              else leg.s0_m + leg.length_m)
+        if hi - lo < STRAIGHT_MIN_M:
             return -1  # no straight part worth the name: a leg of a curve drawn as a polyline
-        if self.s - leg.s0_m < a0 or leg.s0_m + leg.length_m - self.s < a1:
+        if not lo <= self.s <= hi:
             return -1
         return k
 
@@ -203,6 +204,8 @@ class AlongPlan:
             self._score(x, y, lo, hi, var_c)
             if self._update(s_m, var):
                 self._cross_update(c, var_c)
+                if not self.near_corner():
+                    self.steady_cross = self.cross
                 return True
         else:
             self.refused += 1
@@ -253,7 +256,7 @@ class AlongPlan:
         sc = self.scores
         for i, r in enumerate(RADII_M):
             _, c = plan.nearest(x, y, lo, hi, r)
-            e = c - self.cross
+            e = c - self.steady_cross
             sc[i] = RADIUS_MEMORY * sc[i] + min(e * e / var_c, SCORE_CAP_CHI2)
         best = min(range(len(RADII_M)), key=sc.__getitem__)
         cur = RADII_M.index(self.radius)
