@@ -485,7 +485,8 @@ class FollowGuidance:
         to = leg.s0_m + leg.length_m - path.s if leg.index + 1 < len(plan.legs) else math.inf
         v = math.hypot(tg.vx, tg.vy)
         after = since <= max(zone, v * PLAN_AFTER_CORNER_S) or (
-            since <= v * PLAN_SETTLE_MAX_S and _settling(track, kf_now, tg, path, leg))
+            since <= v * PLAN_SETTLE_MAX_S and (_settling(track, kf_now, tg, path, leg)
+                                                or _rounding(plan, leg, path, tg, kf_now)))
         if to > zone + self.cfg.lookahead_m and not after:
             self._sm_plan = None
             return None
@@ -728,6 +729,16 @@ def _settling(track: AuvTrack, kf_now: tuple[float, float], tg: Target, path: Pl
         return False
     c_rel = leg.project(*kf_now)[1] - path.cross  # m, > 0 to starboard of the target
     return abs(c_rel) <= PLAN_SETTLE_CROSS_M or c_rel * math.sin(off) <= 0.0
+
+
+def _rounding(plan: Plan, leg: PlanLeg, path: PlanPath, tg: Target,
+              kf_now: tuple[float, float]) -> bool:
+    """Whether the target ``tg`` (on ``path``) is still where the AUV comes
+    round the corner before ``leg`` (a reversal's swing and the way back onto
+    the line take tens of metres of its guidance: :mod:`~zarco_runtime.tracking.plan_flown`),
+    within ``PLAN_SETTLE_GATE_M`` of the filter's position ``kf_now`` (NED, m)."""
+    return (leg.index > 0 and path.s < plan.span(leg.index - 1, path.radius)[1]
+            and math.dist((tg.x, tg.y), kf_now) <= PLAN_SETTLE_GATE_M)
 
 
 def _path_turn_sign(path: StraightPath | PlanPath, ahead: float) -> float:

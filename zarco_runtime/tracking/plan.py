@@ -181,13 +181,18 @@ class PlanMatcher:
         along, cross = leg.project(x, y)
         gate = p.cross_gate_m + 2.0 * sigma
         pos_ok = abs(cross) <= gate and -gate <= along <= leg.length_m + gate
+        return _Fit(along, cross, pos_ok, self._course_ok(leg.course_rad, vx, vy))
+
+    def _course_ok(self, course: float, vx: float, vy: float) -> bool:
+        """Whether the velocity (m/s) runs along ``course`` (rad) within
+        ``course_gate_deg`` beyond its own uncertainty (2σ of the velocity's
+        direction: a filter just started or re-anchored does not know it), or
+        is too slow to say."""
+        p = self.params
         v = math.hypot(vx, vy)
-        # the course is judged beyond its own uncertainty (2σ of the velocity's
-        # direction): a filter just started or re-anchored does not know it
         tol = math.radians(p.course_gate_deg) + math.atan2(self._vel_sigma, max(v, 1e-6))
-        course_ok = v < p.min_speed_mps or abs(math.remainder(
-            math.atan2(vy, vx) - leg.course_rad, math.tau)) <= tol
-        return _Fit(along, cross, pos_ok, course_ok)
+        return v < p.min_speed_mps or abs(math.remainder(
+            math.atan2(vy, vx) - course, math.tau)) <= tol
 
     def update(self, t: float, x: float, y: float, vx: float, vy: float,
                sigma: float = 0.0, vel_sigma: float = 0.0) -> None:
@@ -353,16 +358,25 @@ class PlanMatcher:
         near_end = k + 1 < len(legs) and f.along >= leg.length_m - zone
         near_start = k > 0 and f.along <= zone
         gate = p.cross_gate_m + 2.0 * sigma + (0.5 * radius if near_end or near_start else 0.0)
+        cross, course_ok = f.cross, f.course_ok
+        al = self.along
+        if al is not None and radius > 0.0:
+            # off the path the AUV flies, not the sharp leg: past a reversal it
+            # swings out up to its turning circle and comes back over tens of
+            # metres, off the leg's line and course all that while
+            s_m, cross = plan.nearest(x, y, al.s - p.along_window_m, al.s + p.along_window_m,
+                                      radius)
+            course_ok = self._course_ok(plan.point_at(s_m, 0.0, radius)[2], vx, vy)
         reason = ""
-        if abs(f.cross) > gate:
-            reason = f"{abs(f.cross):.0f} m {'starboard' if f.cross > 0 else 'port'} of leg {k + 1}"
+        if abs(cross) > gate:
+            reason = f"{abs(cross):.0f} m {'starboard' if cross > 0 else 'port'} of leg {k + 1}"
         elif k + 1 < len(legs) and f.along > leg.length_m + zone:
             reason = f"past the end of leg {k + 1} without turning"
         elif self.tentative and (passed := self._straight_on(k, x, y, vx, vy)) >= 0:
             # a guessed corner the AUV flew straight past: no such corner
             self._leave(f"straight on past the end of leg {passed + 1}")
             return
-        elif not f.course_ok and not (near_end or near_start):
+        elif not course_ok and not (near_end or near_start):
             course = math.degrees(math.atan2(vy, vx)) % 360.0
             reason = (f"course {course:.0f}° where leg {k + 1} runs "
                       f"{math.degrees(leg.course_rad) % 360.0:.0f}°")
