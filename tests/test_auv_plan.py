@@ -251,6 +251,31 @@ def test_an_auv_on_its_plan_is_followed_leg_by_leg_and_never_lost(seed: int) -> 
 
 
 @pytest.mark.parametrize("seed", range(6))
+def test_an_auv_reversing_on_its_plan_is_not_taken_off_it(seed: int) -> None:
+    """Legs of 80–140 m joined by reversals (150–180°), flown at 0.6–1.4 m/s
+    turning at 6–15°/s: past each reversal the AUV swings out up to its
+    turning circle (9–27 m across) off the next leg and tens of degrees off
+    its course for tens of seconds, on the path it flies; it never leaves
+    its plan (judged from the sharp legs, it did)."""
+    rng = np.random.default_rng(700 + seed)
+    pts = [[0.0, 0.0]]
+    course = float(rng.uniform(-math.pi, math.pi))
+    for i in range(4):
+        if i:
+            course += float(rng.choice([-1.0, 1.0]) * math.radians(rng.uniform(150.0, 180.0)))
+        n = float(rng.uniform(80.0, 140.0))
+        pts.append([pts[-1][0] + n * math.cos(course), pts[-1][1] + n * math.sin(course)])
+    v, rate = float(rng.uniform(0.6, 1.4)), float(rng.uniform(6.0, 15.0))
+    m = PlanMatcher(PlanParams())
+    m.set_plan([(p[0], p[1]) for p in pts])
+    hist = fly(m, auv_on(pts, v, rate), duration(pts, v) - 2.0, rng, sigma=0.5)
+    joined = next(t for t, leg in hist if leg >= 0)
+    after = [leg for t, leg in hist if t >= joined]
+    assert -1 not in after and m.left == 0, m.events
+    assert after[-1] == len(pts) - 2
+
+
+@pytest.mark.parametrize("seed", range(6))
 def test_an_early_turn_onto_a_leg_the_plan_has_not_is_noticed(seed: int) -> None:
     """The AUV abandons the plan half-way along a survey line, turning 40–140°
     onto a course of its own (an adaptive mission): off the plan within seconds
