@@ -32,6 +32,7 @@ path linearly in metres flown (as an arc's stretch is in angle).
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -70,7 +71,8 @@ class Flown:
     as the AUV flies it: a polyline of the simulated positions (NED, m) and
     courses (rad), ``ell`` the metres flown to each point."""
 
-    __slots__ = ("_ell", "_psi", "_x", "_y", "hi", "length_m", "lo", "stretch")
+    __slots__ = ("_dx", "_dy", "_ell", "_ell_l", "_len2", "_psi", "_psi_l", "_x", "_x_l",
+                 "_y", "_y_l", "hi", "length_m", "lo", "stretch")
 
     def __init__(self, lo: float, hi: float, xs: list[float], ys: list[float],
                  psis: list[float]) -> None:
@@ -79,6 +81,16 @@ class Flown:
         self._psi: NDArray[np.float64] = np.unwrap(np.asarray(psis, dtype=float))
         steps = np.hypot(np.diff(self._x), np.diff(self._y))
         self._ell: NDArray[np.float64] = np.concatenate(([0.0], np.cumsum(steps)))
+        # the segments' components and squared lengths (zero-length ones as 1)
+        self._dx = np.diff(self._x)
+        self._dy = np.diff(self._y)
+        len2 = self._dx * self._dx + self._dy * self._dy
+        self._len2 = np.where(len2 > 0.0, len2, 1.0)
+        # the same as lists, for one point at a time (a numpy call costs more)
+        self._x_l: list[float] = self._x.tolist()
+        self._y_l: list[float] = self._y.tolist()
+        self._psi_l: list[float] = self._psi.tolist()
+        self._ell_l: list[float] = self._ell.tolist()
         self.lo = lo
         self.hi = hi
         self.length_m = float(self._ell[-1])
@@ -89,9 +101,13 @@ class Flown:
         """(x, y, course) at path coordinate ``s`` in the stretch, ``cross``
         metres to starboard."""
         ell = min(max((s - self.lo) / self.stretch, 0.0), self.length_m)
-        x = float(np.interp(ell, self._ell, self._x))
-        y = float(np.interp(ell, self._ell, self._y))
-        psi = float(np.interp(ell, self._ell, self._psi))
+        e = self._ell_l
+        i = min(max(bisect.bisect_right(e, ell) - 1, 0), len(e) - 2)
+        f = (ell - e[i]) / (e[i + 1] - e[i]) if e[i + 1] > e[i] else 0.0
+        xs, ys, ps = self._x_l, self._y_l, self._psi_l
+        x = xs[i] + f * (xs[i + 1] - xs[i])
+        y = ys[i] + f * (ys[i + 1] - ys[i])
+        psi = ps[i] + f * (ps[i + 1] - ps[i])
         return x - cross * math.sin(psi), y + cross * math.cos(psi), math.remainder(psi, math.tau)
 
     def nearest(self, x: float, y: float, s_lo: float = -math.inf, s_hi: float = math.inf
@@ -108,38 +124,33 @@ class Flown:
         ell = self._ell
         i0 = max(int(np.searchsorted(ell, e_lo, side="right")) - 1, 0)
         i1 = min(int(np.searchsorted(ell, e_hi, side="left")), len(ell) - 1)
-        xs, ys = self._x[i0:i1 + 1], self._y[i0:i1 + 1]
-        if len(xs) < 2:
-            px, py, _ = self.at(self.lo + e_lo * self.stretch, 0.0)
-            d = math.hypot(x - px, y - py)
-            return d, self.lo + e_lo * self.stretch, 0.0
-        dx, dy = np.diff(xs), np.diff(ys)
-        len2 = dx * dx + dy * dy
-        safe = np.where(len2 > 0.0, len2, 1.0)
-        f = np.clip(((x - xs[:-1]) * dx + (y - ys[:-1]) * dy) / safe, 0.0, 1.0)
-        d2 = (x - xs[:-1] - f * dx) ** 2 + (y - ys[:-1] - f * dy) ** 2
-        i = int(np.argmin(d2))
-        e = float(ell[i0 + i] + f[i] * (ell[i0 + i + 1] - ell[i0 + i]))
-        # the foot along the interpolated course, about the segment's (bisection
-        # of the along-course offset over the segments either side)
-        a, b = float(ell[max(i0 + i - 1, 0)]), float(ell[min(i0 + i + 2, len(ell) - 1)])
-        a, b = max(a, e_lo), min(b, e_hi)
-
-        def along(q: float) -> float:
-            px, py, psi = self.at(self.lo + q * self.stretch, 0.0)
-            return (x - px) * math.cos(psi) + (y - py) * math.sin(psi)
-
-        fa, fb = along(a), along(b)
-        if fa >= 0.0 >= fb:
-            for _ in range(40):
-                m = 0.5 * (a + b)
-                if along(m) >= 0.0:
-                    a = m
-                else:
-                    b = m
-            e = 0.5 * (a + b)
+        if i1 <= i0:
+            e = e_lo
         else:
-            e = min(max(e, e_lo), e_hi)
+            xs, ys = self._x[i0:i1], self._y[i0:i1]
+            dx, dy = self._dx[i0:i1], self._dy[i0:i1]
+            f = np.clip(((x - xs) * dx + (y - ys) * dy) / self._len2[i0:i1], 0.0, 1.0)
+            d2 = (x - xs - f * dx) ** 2 + (y - ys - f * dy) ** 2
+            i = int(np.argmin(d2))
+            e = float(ell[i0 + i] + f[i] * (ell[i0 + i + 1] - ell[i0 + i]))
+        e = min(max(e, e_lo), e_hi)
+        # the foot along the interpolated course (as ``at`` offsets): Newton's
+        # steps on the offset along the course, g(ℓ) = (P − p(ℓ))·t(ℓ), whose
+        # slope is −(1 − κ c) at curvature κ and offset c
+        e_l = self._ell_l
+        for _ in range(4):
+            px, py, psi = self.at(self.lo + e * self.stretch, 0.0)
+            cs, sn = math.cos(psi), math.sin(psi)
+            g = (x - px) * cs + (y - py) * sn
+            c = -(x - px) * sn + (y - py) * cs
+            j = min(max(bisect.bisect_right(e_l, e) - 1, 0), len(e_l) - 2)
+            kappa = ((self._psi_l[j + 1] - self._psi_l[j]) / (e_l[j + 1] - e_l[j])
+                     if e_l[j + 1] > e_l[j] else 0.0)
+            slope = 1.0 - kappa * c
+            step = g / slope if slope > 0.1 else g
+            e = min(max(e + step, e_lo), e_hi)
+            if abs(step) < 1e-9:
+                break
         px, py, psi = self.at(self.lo + e * self.stretch, 0.0)
         cross = -(x - px) * math.sin(psi) + (y - py) * math.cos(psi)
         return math.hypot(x - px, y - py), self.lo + e * self.stretch, cross
