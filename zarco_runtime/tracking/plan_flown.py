@@ -34,7 +34,8 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,17 +54,23 @@ ON_LINE_DEG = 1.0
 MAX_FLOWN_M = 2000.0
 
 
-@dataclass(frozen=True, slots=True)
-class LegLine:
-    """A leg as the simulation flies it: its start (NED, m), unit direction,
-    length (m) and the sharp plan's path coordinate of its start (m)."""
+class Leg(Protocol):
+    """A leg as the simulation flies it (:class:`~.plan_geometry.PlanLeg`):
+    its start (NED, m), unit direction, length (m) and the sharp plan's path
+    coordinate of its start (m)."""
 
-    n0: float
-    e0: float
-    ux: float
-    uy: float
-    length_m: float
-    s0_m: float
+    @property
+    def n0(self) -> float: ...
+    @property
+    def e0(self) -> float: ...
+    @property
+    def ux(self) -> float: ...
+    @property
+    def uy(self) -> float: ...
+    @property
+    def length_m(self) -> float: ...
+    @property
+    def s0_m(self) -> float: ...
 
 
 class Flown:
@@ -161,7 +168,7 @@ def switch_m(radius: float, turn_rad: float) -> float:
     return radius * math.tan(min(abs(turn_rad), math.pi / 2.0) / 2.0)
 
 
-def fly(legs: list[LegLine], k: int, radius: float) -> tuple[Flown, int]:
+def fly(legs: Sequence[Leg], k: int, radius: float) -> tuple[Flown, int]:
     """The AUV of turning radius ``radius`` (m) flying the corner at the end
     of leg ``k`` (module docstring), from where it starts the next leg to where
     it is back on one; and the leg it is back on (the corners before it are

@@ -29,7 +29,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from zarco_runtime.tracking.plan_flown import Flown, LegLine, fly, switch_m
+from zarco_runtime.tracking.plan_flown import Flown, fly, switch_m
 
 #: the most points a plan may have
 MAX_POINTS = 1000
@@ -180,7 +180,7 @@ class Plan:
     turning radius R flies along them (module docstring).  Raises ValueError
     (:func:`check_points`) for points that are not a plan."""
 
-    __slots__ = ("_arcs", "_lines", "legs", "length_m", "points")
+    __slots__ = ("_arcs", "legs", "length_m", "points")
 
     def __init__(self, points: list[tuple[float, float]] | tuple[tuple[float, float], ...]
                  ) -> None:
@@ -202,8 +202,6 @@ class Plan:
         self.legs = tuple(legs)
         self.length_m = s
         self._arcs: dict[float, dict[int, Rounding]] = {}
-        self._lines = [LegLine(lg.n0, lg.e0, lg.ux, lg.uy, lg.length_m, lg.s0_m)
-                       for lg in legs]
 
     def turn_rad(self, k: int) -> float:
         """The course change at the end of leg ``k`` (rad, + to starboard); 0
@@ -299,7 +297,7 @@ class Plan:
                     and arc.hi > legs[nxt + 1].s0_m - switch_m(radius, self.turn_rad(nxt))):
                 done[k] = arc
                 return
-        flown, back_on = fly(self._lines, k, radius)
+        flown, back_on = fly(self.legs, k, radius)
         for j in range(k, back_on):
             done[j] = flown
 
