@@ -251,6 +251,29 @@ def test_an_auv_on_its_plan_is_followed_leg_by_leg_and_never_lost(seed: int) -> 
 
 
 @pytest.mark.parametrize("seed", range(6))
+def test_the_auvs_turning_radius_is_learnt_from_its_u_turns(seed: int) -> None:
+    """Lawnmowers whose lines (10–20 m apart, 50–80 m long) are closer than
+    the AUV's turning circle (its speed over its turn rate: 6.4–13 m of
+    radius, not the configured 6 m): the AUV swings out past each next line,
+    and after its U-turns the radius in use is within 1.5 m of its own.
+    (Scored against the offset filter's own estimate, which follows the path
+    in use about a corner, the configured radius always won.)"""
+    rng = np.random.default_rng(900 + seed)
+    v = float(rng.uniform(1.0, 1.4))
+    rate = float(rng.uniform(6.0, 9.0))
+    radius = v / math.radians(rate)
+    gap = float(rng.uniform(10.0, min(20.0, 2.0 * radius - 1.0)))
+    length = float(rng.uniform(50.0, 80.0))
+    pts = [[x, i * gap] for i in range(5) for x in ((0.0, length) if i % 2 == 0
+                                                    else (length, 0.0))]
+    m = PlanMatcher(PlanParams())
+    m.set_plan([(p[0], p[1]) for p in pts])
+    fly(m, auv_on(pts, v, rate), duration(pts, v) - 2.0, rng, sigma=0.5)
+    assert m.along is not None
+    assert abs(m.along.radius - radius) <= 1.5, (m.along.radius, radius)
+
+
+@pytest.mark.parametrize("seed", range(6))
 def test_an_auv_reversing_on_its_plan_is_not_taken_off_it(seed: int) -> None:
     """Legs of 80–140 m joined by reversals (150–180°), flown at 0.6–1.4 m/s
     turning at 6–15°/s: past each reversal the AUV swings out up to its
