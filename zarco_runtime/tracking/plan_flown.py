@@ -86,11 +86,11 @@ class Flown:
         self._x: NDArray[np.float64] = np.asarray(xs, dtype=float)
         self._y: NDArray[np.float64] = np.asarray(ys, dtype=float)
         self._psi: NDArray[np.float64] = np.unwrap(np.asarray(psis, dtype=float))
-        steps = np.hypot(np.diff(self._x), np.diff(self._y))
-        self._ell: NDArray[np.float64] = np.concatenate(([0.0], np.cumsum(steps)))
         # the segments' components and squared lengths (zero-length ones as 1)
         self._dx = np.diff(self._x)
         self._dy = np.diff(self._y)
+        steps = np.hypot(self._dx, self._dy)
+        self._ell: NDArray[np.float64] = np.concatenate(([0.0], np.cumsum(steps)))
         len2 = self._dx * self._dx + self._dy * self._dy
         self._len2 = np.where(len2 > 0.0, len2, 1.0)
         # the same as lists, for one point at a time (a numpy call costs more)
@@ -109,13 +109,17 @@ class Flown:
         metres to starboard."""
         ell = min(max((s - self.lo) / self.stretch, 0.0), self.length_m)
         e = self._ell_l
-        i = min(max(bisect.bisect_right(e, ell) - 1, 0), len(e) - 2)
+        i = self._segment(ell)
         f = (ell - e[i]) / (e[i + 1] - e[i]) if e[i + 1] > e[i] else 0.0
         xs, ys, ps = self._x_l, self._y_l, self._psi_l
         x = xs[i] + f * (xs[i + 1] - xs[i])
         y = ys[i] + f * (ys[i + 1] - ys[i])
         psi = ps[i] + f * (ps[i + 1] - ps[i])
         return x - cross * math.sin(psi), y + cross * math.cos(psi), math.remainder(psi, math.tau)
+
+    def _segment(self, ell: float) -> int:
+        """The polyline's segment holding ``ell`` metres flown (clamped to its ends)."""
+        return min(max(bisect.bisect_right(self._ell_l, ell) - 1, 0), len(self._ell_l) - 2)
 
     def nearest(self, x: float, y: float, s_lo: float = -math.inf, s_hi: float = math.inf
                 ) -> tuple[float, float, float]:
@@ -150,7 +154,7 @@ class Flown:
             cs, sn = math.cos(psi), math.sin(psi)
             g = (x - px) * cs + (y - py) * sn
             c = -(x - px) * sn + (y - py) * cs
-            j = min(max(bisect.bisect_right(e_l, e) - 1, 0), len(e_l) - 2)
+            j = self._segment(e)
             kappa = ((self._psi_l[j + 1] - self._psi_l[j]) / (e_l[j + 1] - e_l[j])
                      if e_l[j + 1] > e_l[j] else 0.0)
             slope = 1.0 - kappa * c
