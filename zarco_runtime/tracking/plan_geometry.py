@@ -238,11 +238,6 @@ class Plan:
 
     # ------------------------------------------------------------ rounding
 
-    def arcs(self, radius: float) -> tuple[Rounding, ...]:
-        """How each corner is rounded for turning radius ``radius`` (m)
-        (:meth:`corner`)."""
-        return tuple(self.corner(k, radius) for k in range(len(self.legs) - 1))
-
     def corner(self, k: int, radius: float) -> Rounding:
         """How corner ``k`` is rounded for turning radius ``radius`` (m): an
         :class:`Arc` where one tangent to both legs fits, the AUV's guidance
