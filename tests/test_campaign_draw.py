@@ -19,6 +19,7 @@ from zarco_tools.campaign.draw import draw_mission
 from zarco_tools.campaign.follow_judge import judge_follow
 from zarco_tools.campaign.physics import straight_thrust, survey_scale_pct
 from zarco_tools.campaign.spec import load_spec, parse_choice, with_choices
+from zarco_tools.campaign.tables import summarise
 
 ROOT = Path(__file__).resolve().parents[1]
 FOLLOW = ROOT / "config" / "campaigns" / "follow.toml"
@@ -274,12 +275,16 @@ def test_what_physics_forbids_is_exempt_with_its_figure_not_a_miss() -> None:
     assert set(j.exempt) == {"p95", "uturn"} and "-0.08 m/s" in j.exempt["p95"]
     assert set(j.fails) == {"lost"}  # losing the track is not physics
     assert j.severity == pytest.approx(1.2)
+    assert j.left_out  # no boat could: out of "every target"
+    # a closing speed ≤ 0 whose targets were met anyway leaves nothing out
+    assert not judge_follow(TARGETS, slow, report()).left_out
 
 
 def test_sound_speed_with_two_beacons_is_not_observable() -> None:
     two = {**FACT, "beacons": 2, "sound_speed_error_pct": 0.8}
     j = judge_follow(TARGETS, two, report(sound_speed_error_max_pct=0.8))
     assert "sound_speed" in j.exempt and j.fails == {}
+    assert not j.left_out  # the following is judged all the same
     three = {**FACT, "sound_speed_error_pct": 0.8}
     assert "sound_speed" in judge_follow(TARGETS, three,
                                          report(sound_speed_error_max_pct=0.8)).fails
@@ -325,3 +330,25 @@ def test_the_closing_speed_counts_only_the_thrust_a_boat_going_straight_has(
     assert straight_thrust(p.fwd_max_n, mismatch, 3.0, -2.0) < 2.0 * min(f1, f2)
     if mismatch:
         assert straight_thrust(p.fwd_max_n, mismatch, 0.0, 0.0) < f1 + f2
+
+
+def test_every_target_leaves_out_only_what_physics_forbids() -> None:
+    """An unobservable sound speed drops that check alone: the mission counts
+    in "every target", passed or failed on the rest; a mission no boat could
+    follow is left out; a record from before the judges said so is counted
+    as it was then (any exemption left it out)."""
+    def rec(i: int, fails: dict[str, list[str]], exempt: dict[str, str],
+            **kw: Any) -> dict[str, Any]:
+        return {"index": i, "family": "lawnmower", "factors": {}, "fails": fails,
+                "exempt": exempt, "severity": 0.0, "scenario_seed": 1, "overrides": [],
+                "figures": {}, **kw}
+    unobservable = {"sound_speed": "not observable with 2 beacons"}
+    recs = [rec(0, {}, unobservable, left_out=False),                   # passes
+            rec(1, {"p95": ["5.0 m"]}, unobservable, left_out=False),  # fails
+            rec(2, {}, {"p95": "closing speed -0.10 m/s"}, left_out=True),
+            rec(3, {}, unobservable),                                   # as before
+            rec(4, {}, {}, left_out=False),
+            rec(5, {"median": ["1.2 m"]}, {}, left_out=False)]
+    every = summarise(recs, ("median", "p95", "sound_speed"), "follow.toml", [])["all"][
+        "every_target"]
+    assert every == {"applicable": 4, "passed": 2, "exempt": 2}

@@ -20,7 +20,7 @@ import numpy as np
 from zarco_core.config import ConfigError
 from zarco_tools.campaign.plots import figure_values
 from zarco_tools.campaign.results import load_dir
-from zarco_tools.campaign.tables import applies
+from zarco_tools.campaign.tables import applies, in_every
 
 #: bootstrap resamples of the mean difference (fixed seed: the same answer twice)
 BOOTSTRAP = 2000
@@ -29,7 +29,7 @@ BOOTSTRAP = 2000
 def _passes(rec: dict[str, Any], check: str) -> bool | None:
     """Whether ``rec`` passes ``check`` (None: not applicable, or exempt)."""
     if check == "every target":
-        return None if rec.get("exempt") else not rec.get("fails")
+        return not rec.get("fails") if in_every(rec) else None
     if not applies(check, rec) or check in rec.get("exempt", {}):
         return None
     return check not in rec.get("fails", {})

@@ -53,13 +53,18 @@ class Judgement:
     """A mission's report against its targets: ``fails`` per target (short
     reasons), ``exempt`` per target where physics or observability forbids
     it (the reason with the figure: not counted as a miss), ``severity`` (the
-    largest figure/target ratio; ≤ 1 when every target is met), and per
-    manoeuvre of the report whether it met its targets (``turns_ok``)."""
+    largest figure/target ratio; ≤ 1 when every target is met), per
+    manoeuvre of the report whether it met its targets (``turns_ok``), and
+    ``left_out``: physics forbids what the mission is for (no boat could meet
+    its targets), so it is left out of "every target" — an exemption for
+    observability (a sound speed no timing can tell) is not a reason to leave
+    the rest of the mission unjudged."""
 
     fails: dict[str, list[str]]
     exempt: dict[str, str]
     severity: float
     turns_ok: tuple[bool, ...] = ()
+    left_out: bool = False
 
 
 class Drawer(Protocol):

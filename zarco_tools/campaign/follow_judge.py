@@ -24,7 +24,10 @@ exempt (physics or observability forbids it; the reason carries the figure):
 * ``json``: the report is valid JSON (no NaN).
 
 A mission whose least closing speed (:mod:`zarco_tools.campaign.physics`) is
-≤ 0 is exempt from the distance and turn checks: no boat could do it.
+≤ 0 is exempt from the distance and turn checks it fails: no boat could do
+it, and the mission is left out of "every target" (``left_out``).  The
+sound speed's exemption (not observable) drops that check alone: the
+mission is judged on the others.
 """
 
 from __future__ import annotations
@@ -135,4 +138,5 @@ def judge_follow(tg: dict[str, float], factors: dict[str, Any], report: dict[str
         ratios.append(("json", 99.0))
     # how far from the targets, over the checks that are not exempt
     severity = max([min(r, 99.0) for k, r in ratios if k not in exempt] or [0.0])
-    return Judgement(fails, exempt, round(severity, 3), tuple(turns_ok))
+    return Judgement(fails, exempt, round(severity, 3), tuple(turns_ok),
+                     left_out=any(k in exempt for k in PHYSICS))

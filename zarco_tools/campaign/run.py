@@ -46,7 +46,7 @@ def run_mission(spec: CampaignSpec, seed: int, index: int, sets: list[str]
     else:
         j = dr.judge(spec, m.factors, report)
         rec.update({"figures": {k: report.get(k) for k in dr.figures}, "fails": j.fails,
-                    "exempt": j.exempt, "severity": j.severity})
+                    "exempt": j.exempt, "severity": j.severity, "left_out": j.left_out})
         if j.turns_ok:
             rec["turns_ok"] = list(j.turns_ok)
     rec.update({"wall_s": round(time.perf_counter() - w0, 3),

@@ -9,7 +9,8 @@ check applies to a mission that has something to judge: a turn check to a
 mission with a manoeuvre of that kind, the sound-speed check to one with an
 estimate 300 s after acquisition; cells read ``passed/applicable`` with the
 exempt missions after them (``+2 exempt``).  "every target" counts the
-missions with no failed check among those with no exemption.
+missions with no failed check (an exempt check is not a miss) among those
+physics leaves in (:func:`in_every`).
 """
 
 from __future__ import annotations
@@ -45,6 +46,14 @@ def applies(check: str, rec: dict[str, Any]) -> bool:
     return "crash" not in rec.get("fails", {})
 
 
+def in_every(rec: dict[str, Any]) -> bool:
+    """Whether the mission counts in "every target": not left out by its
+    judge (physics forbids what it is for).  A record from before the judges
+    said so leaves out every mission with an exemption, as it was counted
+    then."""
+    return not rec.get("left_out", bool(rec.get("exempt")))
+
+
 def _cell(recs: list[dict[str, Any]], check: str) -> dict[str, int]:
     app = [r for r in recs if applies(check, r)]
     ex = [r for r in app if check in r.get("exempt", {})]
@@ -54,7 +63,7 @@ def _cell(recs: list[dict[str, Any]], check: str) -> dict[str, int]:
 
 
 def _group(recs: list[dict[str, Any]], checks: tuple[str, ...]) -> dict[str, Any]:
-    judged = [r for r in recs if not r.get("exempt")]
+    judged = [r for r in recs if in_every(r)]
     return {"missions": len(recs),
             "every_target": {"applicable": len(judged),
                              "passed": sum(1 for r in judged if not r.get("fails")),
