@@ -137,3 +137,39 @@ def test_a_long_straight_run_keeps_the_legs_work_bounded() -> None:
                          rng.normal(0.0, 0.03))
         assert got is None
     assert 0 < len(inf._cur) <= MAX_LEG_POINTS
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_swing_of_the_course_early_on_the_first_leg_does_not_lose_the_set_off(
+        seed: int) -> None:
+    """The filter's course swinging 40° off for a few updates soon after the
+    AUV set off (a settling filter) cuts the first long leg in two; the leg
+    flown is still one, from the set-off point: the lawnmower is inferred
+    after the first U-turn, in time for the second (with the set-off point
+    lost it came only after the second), its corners the survey's."""
+    rng = np.random.default_rng(500 + seed)
+    c = rng.uniform(-math.pi, math.pi)
+    ux, uy, sx, sy = math.cos(c), math.sin(c), -math.sin(c), math.cos(c)
+    length, w = rng.uniform(60.0, 90.0), rng.uniform(15.0, 25.0)
+    pts = [[ux * a * length + sx * b * w, uy * a * length + sy * b * w]
+           for a, b in ((0, 0), (1, 0), (1, 1), (0, 1), (0, 2), (1, 2), (1, 3), (0, 3))]
+    v, rate = float(rng.uniform(0.7, 1.2)), 10.0
+    auv = Auv(AuvParams(waypoints=pts, speed_mps=v, turn_rate_dps=rate, at_end="stop",
+                        start_delay_s=10.0))
+    inf = LawnmowerInference()
+    swing = math.radians(40.0 * rng.choice([-1.0, 1.0]))
+    t, got = 0.0, None
+    second = 10.0 + duration(pts[:5], v)  # the second U-turn begins about here
+    while t < second and got is None:
+        a = auv.truth(t)
+        vx, vy = a.vx_mps, a.vy_mps
+        if 22.0 <= t < 25.0:  # 12-15 s after the set-off
+            vx, vy = (vx * math.cos(swing) - vy * math.sin(swing),
+                      vx * math.sin(swing) + vy * math.cos(swing))
+        ex, ey = rng.normal(0.0, 0.3, 2)
+        got = inf.update(t, a.x_m + ex, a.y_m + ey, vx, vy)
+        t += 1.0
+    assert got, (seed, [(round(leg.t0), round(leg.t1), leg.start) for leg in inf.legs])
+    assert len([leg for leg in inf.legs if leg.t0 < 40.0]) >= 2  # the leg was cut
+    for p in got[:4]:
+        assert _nearest(p, pts) < 2.0 + v / math.radians(rate), (seed, p)

@@ -30,7 +30,9 @@ the turn reached: the leg's end carried on along it as far as the AUV went
 past it within ``REACH_WINDOW_S`` (the spacing leg flown square to it lies on
 the corner's line; a reversal's apex is as far out).  L is the length from
 the corner of the long leg before (level across) to that leg's, or from
-where the AUV set off from hovering.  With a short leg square to the long
+where the AUV set off from hovering (onto that leg, or onto the legs before
+it along its course: a swing of the filter's course early on the first leg
+cuts it in two).  With a short leg square to the long
 ones seen between (a spacing flown straight) one long leg measured is
 enough; without (a bare reversal, which any route may fly once) two,
 agreeing within ``LENGTH_TOL``.  A new plan is returned only when it moves
@@ -90,6 +92,9 @@ REPUBLISH_M = 3.0
 #: the AUV set off at most this long (s) before its first leg started: that
 #: leg's length runs from the set-off point
 SET_OFF_S = 30.0
+#: a set-off point carried over to a leg from the legs before it lies within
+#: this (m) of the leg's line
+SET_OFF_LINE_M = 5.0
 #: how far the AUV went on past a leg's end before coming back (its turn's
 #: reach: where the corner it turned was) is looked for over this long (s)
 #: after the leg ended, and taken at most this far (m)
@@ -348,9 +353,9 @@ class LawnmowerInference:
                 pc, lc = prev.corner, leg.corner
                 begin = (pc[0] - lc[0]) * leg.ux + (pc[1] - lc[1]) * leg.uy
                 lens.append(-begin)
-            elif leg.start is not None:
+            elif (start := self._set_off(k)) is not None:
                 lc = leg.corner
-                begin = (leg.start[0] - lc[0]) * leg.ux + (leg.start[1] - lc[1]) * leg.uy
+                begin = (start[0] - lc[0]) * leg.ux + (start[1] - lc[1]) * leg.uy
                 lens.append(-begin)
                 break
             else:
@@ -361,6 +366,24 @@ class LawnmowerInference:
         if len(lens) == 2 and abs(lens[0] - lens[1]) > LENGTH_TOL * max(lens) + 5.0:
             return None
         return lens[0]
+
+    def _set_off(self, k: int) -> Point | None:
+        """Where the AUV set off from hovering onto leg ``k``: its own set-off
+        point, or that of the legs before it within ``BREAK_DEG`` of its
+        course (a swing of the filter's course early on a leg cuts it in two:
+        the leg flown is still one)."""
+        leg = first = self.legs[k]
+        while leg.start is None and k > 0:
+            k -= 1
+            before = self.legs[k]
+            if abs(_turn(before.course, leg.course)) > math.radians(BREAK_DEG):
+                return None
+            leg = before
+        start = leg.start
+        if start is None or abs((start[0] - first.x) * first.uy - (start[1] - first.y) * first.ux
+                                ) > SET_OFF_LINE_M:
+            return None  # not on the leg's line: a turn, not a swing of the course
+        return start
 
 
 def _long(leg: Leg) -> bool:
