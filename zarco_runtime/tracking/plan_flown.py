@@ -78,14 +78,14 @@ class Flown:
     as the AUV flies it: a polyline of the simulated positions (NED, m) and
     courses (rad), ``ell`` the metres flown to each point."""
 
-    __slots__ = ("_dx", "_dy", "_ell", "_ell_l", "_len2", "_psi", "_psi_l", "_x", "_x_l",
+    __slots__ = ("_dx", "_dy", "_ell", "_ell_l", "_len2", "_psi_l", "_x", "_x_l",
                  "_y", "_y_l", "hi", "length_m", "lo", "stretch")
 
     def __init__(self, lo: float, hi: float, xs: list[float], ys: list[float],
                  psis: list[float]) -> None:
         self._x: NDArray[np.float64] = np.asarray(xs, dtype=float)
         self._y: NDArray[np.float64] = np.asarray(ys, dtype=float)
-        self._psi: NDArray[np.float64] = np.unwrap(np.asarray(psis, dtype=float))
+        psi = np.unwrap(np.asarray(psis, dtype=float))
         # the segments' components and squared lengths (zero-length ones as 1)
         self._dx = np.diff(self._x)
         self._dy = np.diff(self._y)
@@ -96,7 +96,7 @@ class Flown:
         # the same as lists, for one point at a time (a numpy call costs more)
         self._x_l: list[float] = self._x.tolist()
         self._y_l: list[float] = self._y.tolist()
-        self._psi_l: list[float] = self._psi.tolist()
+        self._psi_l: list[float] = psi.tolist()
         self._ell_l: list[float] = self._ell.tolist()
         self.lo = lo
         self.hi = hi
