@@ -317,6 +317,19 @@ class Imm:
         m.P[4][4] = var
         self._combine()
 
+    def reset_turn_rates(self) -> None:
+        """Every turning model but the quiet one back to the turn rate it
+        expects (``omega0``, variance ``omega0_var``): what they learnt of a
+        turn that is over."""
+        for m in self.models[1:]:
+            if m.kind != "ct":
+                continue
+            m.x[4] = m.omega0
+            for k in range(4):
+                m.P[k][4] = m.P[4][k] = 0.0
+            m.P[4][4] = m.omega0_var
+        self._combine()
+
     @property
     def maneuver_probability(self) -> float:
         """Probability that the AUV is not flying straight (1 − μ of model 0)."""

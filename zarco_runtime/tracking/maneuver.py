@@ -42,7 +42,7 @@ spurious and set back to 0.  On a true arc the path turns as the rate says.
 The tracker runs the check after every update while the IMM says straight.
 On the AUV's plan the tracker knows sooner: once the AUV is on the straight
 part of a leg, :meth:`ManeuverDetector.plan_straight` sets a leftover rate
-back to 0 at once.
+back to 0 at once (every model's, while the IMM still says manoeuvring).
 
 ``turn_utc``: UTC (s) of the last line restart (the TURNING flag holds
 ``turning_flag_s`` after it).
@@ -132,8 +132,13 @@ class ManeuverDetector:
     def plan_straight(self, kf: Imm) -> bool:
         """The AUV's plan says it flies a straight line now: a turn rate left
         in the quiet model (a sharp corner it followed as an arc) is set back
-        to 0; True if there was one."""
+        to 0; True if there was one.  While the IMM still takes the AUV to
+        manoeuvre (after a U-turn every model has the turn's rate, and none
+        predicting better, the manoeuvre lingers), the turning models are set
+        back to the rates they expect as well."""
         w, _ = kf.quiet_turn_rate
+        if self.maneuvering:
+            kf.reset_turn_rates()
         if abs(w) < math.radians(QUIET_RATE_SIGMA_DPS):
             return False
         self._straight(kf)

@@ -719,7 +719,8 @@ class AuvTracker:
     def _plan_straight(self) -> None:
         """On the straight part of a leg of the AUV's plan (and on the leg), once
         per leg: the plan says the AUV flies straight there, so a turn rate the
-        corner left in the IMM's quiet model is set back to 0."""
+        corner left in the IMM is set back (:meth:`.maneuver.ManeuverDetector.plan_straight`:
+        whether or not the IMM still says manoeuvring)."""
         al, kf = self.plan.along, self.kf
         if al is None or self.plan.leg < 0 or not isinstance(kf, Imm):
             self._straight_leg = -1  # off the plan: every leg counts again
@@ -728,7 +729,7 @@ class AuvTracker:
         if k < 0 or k == self._straight_leg or abs(al.cross) > self.p.plan.cross_gate_m:
             return
         self._straight_leg = k
-        if not self.man.maneuvering and self.man.plan_straight(kf):
+        if self.man.plan_straight(kf):
             self.dropped["plan_straight"] += 1
 
     # ------------------------------------------------------------ the track
