@@ -109,7 +109,7 @@ REVERSAL_RAD = math.radians(120.0)
 AMBIGUOUS_TURN_RAD = math.radians(178.0)
 #: on a plan the tracker guessed, the AUV is taken to turn at a corner once the
 #: filter's course is this far (deg) off the course before it
-TENTATIVE_TURN_DEG = 15.0
+TENTATIVE_TURN_DEG = 11.0
 #: a guessed plan's target is followed only within this (m, plus 3σ of the
 #: filter's position) of the filter's position carried to now
 PLAN_GATE_M = 8.0
