@@ -174,6 +174,14 @@ class _Model:
         elif w < -lim:
             self.x[4] = -lim
 
+    def set_turn_rate(self, w: float, var: float) -> None:
+        """The turn rate set to ``w`` (rad/s) with variance ``var`` (rad²/s²),
+        uncorrelated with the rest of the state."""
+        self.x[4] = w
+        for k in range(4):
+            self.P[k][4] = self.P[4][k] = 0.0
+        self.P[4][4] = var
+
     def predicted_position(self, dt: float) -> tuple[float, float, float, float, float]:
         """(x, y, Pxx, Pxy, Pyy) after ``dt`` s, without changing the model."""
         f = self._transition(dt)
@@ -310,11 +318,7 @@ class Imm:
         """Set the quiet model's turn rate back to 0 with variance ``var``
         (rad²/s²): a sharp turn is over, the AUV flies straight until its
         measurements say it arcs."""
-        m = self.models[0]
-        m.x[4] = 0.0
-        for k in range(4):
-            m.P[k][4] = m.P[4][k] = 0.0
-        m.P[4][4] = var
+        self.models[0].set_turn_rate(0.0, var)
         self._combine()
 
     def reset_turn_rates(self) -> None:
@@ -322,12 +326,8 @@ class Imm:
         expects (``omega0``, variance ``omega0_var``): what they learnt of a
         turn that is over."""
         for m in self.models[1:]:
-            if m.kind != "ct":
-                continue
-            m.x[4] = m.omega0
-            for k in range(4):
-                m.P[k][4] = m.P[4][k] = 0.0
-            m.P[4][4] = m.omega0_var
+            if m.kind == "ct":
+                m.set_turn_rate(m.omega0, m.omega0_var)
         self._combine()
 
     @property
