@@ -14,6 +14,7 @@ import pytest
 
 from drivers.sim.auv import Auv, AuvParams
 from zarco_core.auv_messages import AuvFix
+from zarco_runtime.tracking.kalman import CvKalman
 from zarco_runtime.tracking.plan import (
     MAX_POINTS,
     Plan,
@@ -61,6 +62,33 @@ def fly(matcher: PlanMatcher, auv: Auv, t_end: float, rng: np.random.Generator,
                      sigma ** 2)
         matcher.fix(fix)
         matcher.update(t, fx, fy, a.vx_mps + evx, a.vy_mps + evy, sigma)
+        out.append((t, matcher.leg))
+        t += float(rng.uniform(1.5, 2.5))
+    return out
+
+
+def fly_tracked(matcher: PlanMatcher, auv: Auv, t_end: float, rng: np.random.Generator,
+                sigma: float = 1.0, accel_psd: float = 0.004) -> list[tuple[float, int]]:
+    """As :func:`fly`, with a constant-velocity Kalman filter (white
+    acceleration ``accel_psd``, m²/s³: the tracker's quiet model, slow to
+    turn) fed with the fixes: its prediction to each fix goes to the matcher
+    with the fix, its state after the update to :meth:`PlanMatcher.update`."""
+    out = []
+    kf = CvKalman(accel_psd)
+    t = 0.0
+    while t < t_end:
+        a = auv.truth(t)
+        ex, ey = rng.normal(0.0, sigma, 2)
+        fx, fy = a.x_m + ex, a.y_m + ey
+        if not kf.initialised:
+            kf.init(t, fx, fy, a.vx_mps, a.vy_mps, sigma ** 2, 0.05 ** 2)
+        fix = AuvFix(t, t, 1, fx, fy, fx, fy, 0.0, 0.0, 0.0, True, False, sigma ** 2, 0.0,
+                     sigma ** 2)
+        matcher.fix(fix, kf.predicted(t))
+        kf.predict(t)
+        kf.update([(1.0, 0.0), (0.0, 1.0)], [fx, fy], [sigma ** 2, sigma ** 2])
+        matcher.update(t, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma(),
+                       math.sqrt(0.5 * (kf.P[2][2] + kf.P[3][3])))
         out.append((t, matcher.leg))
         t += float(rng.uniform(1.5, 2.5))
     return out
@@ -407,3 +435,43 @@ def test_a_guessed_plan_is_left_as_soon_as_the_auv_flies_straight_past_a_corner(
     assert t_left <= t_corner + max(4.0 / v, 5.0) + 5.0, (t_left, t_corner)
     # pts[k] ends leg k (numbered from 1)
     assert any(f"straight on past the end of leg {k})" in e for e in m.events), m.events
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_filter_slow_to_turn_does_not_take_the_auv_off_its_plan(seed: int) -> None:
+    """The fixes are weighed between the plan and the tracker's filter: an AUV
+    flying its lawnmower, tracked by a constant-velocity filter that takes
+    its U-turns many fixes late (it runs on straight past every corner), is
+    explained by its plan, which turns where the AUV does — never off it."""
+    rng = np.random.default_rng(1100 + seed)
+    pts, v, rate = lawnmower(rng)
+    m = PlanMatcher(PlanParams())
+    m.set_plan([tuple(p) for p in pts])
+    hist = fly_tracked(m, auv_on(pts, v, rate), duration(pts, v) - 2.0, rng)
+    assert m.left == 0 and m.joined == 1, m.events
+    assert hist[-1][1] == len(pts) - 2
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_an_auv_running_on_past_a_corner_is_off_its_plan_once_the_filter_explains_it(
+        seed: int) -> None:
+    """The AUV of a plan given runs straight on past a corner: once the fixes
+    follow the tracker's filter (straight on) rather than the plan (turned),
+    it has left the plan — within 6 m of its progress past the corner (where
+    the two are several fix σ apart) and four fix intervals, well before it
+    is past the corner's zone (12 m) and the misfit's persistence (4 s)."""
+    rng = np.random.default_rng(1200 + seed)
+    pts, v, rate = lawnmower(rng)
+    k = int(rng.integers(2, len(pts) - 2))
+    a, b = np.array(pts[k - 1]), np.array(pts[k])
+    u = (b - a) / np.linalg.norm(b - a)
+    route = [*pts[:k], (b + 60.0 * u).tolist()]  # straight on past corner k
+    m = PlanMatcher(PlanParams())
+    m.set_plan([tuple(p) for p in pts])
+    hist = fly_tracked(m, auv_on(route, v, rate), duration(route, v) - 2.0, rng)
+    t_corner = duration(pts[: k + 1], v)
+    assert all(leg >= 0 for t, leg in hist if 15.0 < t < t_corner - 5.0), hist
+    t_left = next(t for t, leg in hist if t > t_corner - 5.0 and leg == -1)
+    assert t_left <= t_corner + 6.0 / v + 4 * 2.5, (t_left, t_corner)
+    assert any(e.startswith("AUV left its plan (fixes") and "follow the track" in e
+               for e in m.events), m.events

@@ -28,6 +28,10 @@ every accepted update (:meth:`PlanMatcher.update`: the matching):
   the plan does not have), a late turn, a skipped corner — it has left the
   plan: event ``AUV left its plan`` with the reason, and the matcher searches
   again; re-joining any leg later puts it back on (``AUV back on its plan``).
+  Sooner, at a corner: each fix is weighed between the progress along the
+  plan and the tracker's filter (:meth:`PlanMatcher._weigh`); fixes that
+  keep following the filter rather than the plan (an AUV running on past a
+  corner, or turning the other way) have left it.
 
 The tracker's :class:`~zarco_core.auv_messages.AuvTrack` carries the leg,
 the progress and the offset from the plan (:meth:`PlanMatcher.track_fields`);
@@ -65,6 +69,31 @@ INFERRED_SOURCE = "tracker"
 TENTATIVE_PAST_S = 5.0
 TENTATIVE_PAST_M = 4.0
 TENTATIVE_STRAIGHT_DEG = 15.0
+
+
+#: the fixes weighed between the tracker's filter and the progress along a plan
+#: given (:meth:`PlanMatcher._weigh`): each fix's evidence for the filter
+#: (half the difference of its squared Mahalanobis distances from the two
+#: predictions) clipped to ± this, less this drift, summed; the AUV has left
+#: the plan at this level
+TRACK_LLR_CAP = 3.0
+#: … each prediction's share (half its Mahalanobis distance²) clipped to this
+#: first: a fix far from both (a false detection, a wrong mirror) tells neither
+TRACK_HALF_D2_CAP = 4.5
+TRACK_LLR_DRIFT = 0.5
+TRACK_LLR_LEVEL = 6.0
+
+#: a prediction: (x, y) (m) and its covariance (xx, xy, yy, m²)
+Predicted = tuple[float, float, float, float, float]
+
+
+def _half_d2(dx: float, dy: float, a: float, b: float, d: float) -> float | None:
+    """Half the Mahalanobis distance² of an offset (dx, dy) (m) under the
+    covariance (a, b; b, d) (m²); None if singular."""
+    det = a * d - b * b
+    if not det > 0.0:
+        return None
+    return 0.5 * (d * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
 
 
 @dataclass(slots=True)
@@ -133,6 +162,10 @@ class PlanMatcher:
     along: AlongPlan | None = None
     #: the plan is a guess (:meth:`set_plan`)
     tentative: bool = False
+    #: the CUSUM of the fixes' evidence for the filter against the plan
+    #: (:meth:`_weigh`), and the last fix's distance from the plan's prediction (m)
+    _track_llr: float = 0.0
+    _track_gap: float = 0.0
 
     @property
     def state(self) -> str:
@@ -215,14 +248,19 @@ class PlanMatcher:
         if self.leg < 0:
             self.along = None
 
-    def fix(self, fix: AuvFix) -> None:
+    def fix(self, fix: AuvFix, track: Predicted | None = None) -> None:
         """A position fix (its emission time ``emission_utc_s`` on this matcher's
         clock), accepted by the tracker's filter or not: it moves the AUV's
-        progress along the plan (which has its own gate)."""
+        progress along the plan (which has its own gate).  ``track``: the
+        tracker's filter predicted to the fix — (x, y) (m) and its covariance
+        (xx, xy, yy, m²) — which the fix is weighed between (:meth:`_weigh`)."""
         al, p = self.along, self.params
         if al is None or self.leg < 0 or not fix.emission_utc_s >= al.t:
             return
         al.predict(fix.emission_utc_s, p.along_accel_psd)
+        if track is not None and not self.tentative and self._weigh(fix, al, track):
+            self._leave(f"fixes {self._track_gap:.0f} m from its path follow the track")
+            return
         al.fix(fix, p.along_window_m, p.along_floor_m)
         if al.off_path and not al.near_corner():
             # fixes drifting off a straight leg, beyond what the AUV's offset from
@@ -262,6 +300,7 @@ class PlanMatcher:
     def _start_along(self, t: float, x: float, y: float, vx: float, vy: float,
                      sigma: float) -> None:
         assert self.plan is not None
+        self._track_llr = 0.0
         leg = self.plan.legs[self.leg]
         along, cross = leg.project(x, y)
         u = vx * leg.ux + vy * leg.uy
@@ -408,6 +447,36 @@ class PlanMatcher:
                     c - leg.course_rad, math.tau)) < math.radians(TENTATIVE_STRAIGHT_DEG):
                 return j
         return -1
+
+    def _weigh(self, fix: AuvFix, al: AlongPlan, track: Predicted) -> bool:
+        """Whether the fixes have been explained better by the tracker's filter
+        than by the progress along the plan for long enough that the AUV has
+        left the plan: a CUSUM of each fix's evidence for the filter — half the
+        difference of its squared Mahalanobis distances from the two
+        predictions (each capped at TRACK_HALF_D2_CAP), clipped to
+        ± TRACK_LLR_CAP, less TRACK_LLR_DRIFT — at TRACK_LLR_LEVEL.  (Without
+        the covariances' determinants: the filter is not preferred for being
+        the tighter of the two.)  At a corner the AUV does not turn (or turns
+        another way) the filter, which goes straight until the fixes turn it,
+        explains them first; where the AUV turns as planned the plan does,
+        however late the filter sees the turn; on a straight leg the two
+        agree.  On a guessed plan the corners are only taken once the AUV
+        turns there (the guidance), so this is for plans given."""
+        x, y = fix.x_m, fix.y_m
+        cxx, cxy, cyy = fix.cov_xx_m2, fix.cov_xy_m2, fix.cov_yy_m2
+        if not all(math.isfinite(v) for v in (x, y, cxx, cxy, cyy, *track)):
+            return False
+        px, py, pxx, pxy, pyy = al.predicted(self.params.along_floor_m)
+        tx, ty, txx, txy, tyy = track
+        d_plan = _half_d2(x - px, y - py, pxx + cxx, pxy + cxy, pyy + cyy)
+        d_track = _half_d2(x - tx, y - ty, txx + cxx, txy + cxy, tyy + cyy)
+        if d_plan is None or d_track is None:
+            return False
+        z = max(-TRACK_LLR_CAP, min(TRACK_LLR_CAP, min(d_plan, TRACK_HALF_D2_CAP)
+                                     - min(d_track, TRACK_HALF_D2_CAP)))
+        self._track_llr = max(0.0, self._track_llr + z - TRACK_LLR_DRIFT)
+        self._track_gap = math.hypot(x - px, y - py)
+        return self._track_llr >= TRACK_LLR_LEVEL
 
     def _leave(self, reason: str) -> None:
         self.leg = -1

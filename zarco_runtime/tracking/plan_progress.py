@@ -100,6 +100,26 @@ class AlongPlan:
     #: radii's paths are scored against about a corner, where ``cross`` follows
     #: the path in use wherever the AUV is
     steady_cross: float = 0.0
+    #: … as a displacement (north, east, m: a bias of the fixes — a beacon
+    #: surveyed off, a turnaround — is one in the plane, whichever way the leg
+    #: runs) and its variance (m²)
+    steady_ne: tuple[float, float] = (0.0, 0.0)
+    steady_var: float = 4.0
+
+    def predicted(self, floor: float) -> tuple[float, float, float, float, float]:
+        """Where the AUV flying its plan would be now: (x, y) (m, NED) at the
+        path coordinate, displaced as the fixes were on the last straight
+        stretch (not by the offset that follows the fixes about a corner,
+        which would follow an AUV not turning there too), and the covariance
+        (xx, xy, yy, m²) of the variances along the path and across it there
+        (each plus ``floor``², m: the AUV rounds the corners)."""
+        x, y, course = self.plan.point_at(self.s, 0.0, self.radius)
+        x, y = x + self.steady_ne[0], y + self.steady_ne[1]
+        ux, uy = math.cos(course), math.sin(course)
+        va = self.P[0][0] + floor * floor
+        vc = self.steady_var + floor * floor
+        return (x, y, va * ux * ux + vc * uy * uy, (va - vc) * ux * uy,
+                va * uy * uy + vc * ux * ux)
 
     @property
     def off_path(self) -> bool:
@@ -115,8 +135,10 @@ class AlongPlan:
         ``cross``, and the configured turning ``radius`` (m)."""
         near = min(range(len(RADII_M)), key=lambda i: abs(RADII_M[i] - radius))
         scores = [RADIUS_PRIOR * abs(i - near) for i in range(len(RADII_M))]
+        _, _, course = plan.point_at(s, 0.0, RADII_M[near])
         return cls(plan, t, s, u, [[s_var, 0.0], [0.0, 0.2 ** 2]], cross, RADII_M[near],
-                   0, scores, steady_cross=cross)
+                   0, scores, steady_cross=cross,
+                   steady_ne=(-cross * math.sin(course), cross * math.cos(course)))
 
     def predict(self, t: float, q: float) -> None:
         """To time ``t`` (s), with ``q`` the white-acceleration density of the
@@ -205,7 +227,10 @@ class AlongPlan:
             if self._update(s_m, var):
                 self._cross_update(c, var_c)
                 if not self.near_corner():
-                    self.steady_cross = self.cross
+                    self.steady_cross, self.steady_var = self.cross, self.Pc[0][0]
+                    _, _, c_now = plan.point_at(self.s, 0.0, self.radius)
+                    self.steady_ne = (-self.cross * math.sin(c_now),
+                                      self.cross * math.cos(c_now))
                 return True
         else:
             self.refused += 1

@@ -503,7 +503,9 @@ class AuvTracker:
                      False, ls[2], ls[3], ls[4])
         self.last_fix = fix
         out.append(fix)
-        self.plan.fix(fix)  # the AUV's progress along its plan, whatever the filter made of it
+        # the AUV's progress along its plan, whatever the filter made of it (and
+        # the fix weighed between the plan and the filter's prediction)
+        self.plan.fix(fix, (pr.px, pr.py, pr.pxx, pr.pxy, pr.pyy))
         self._last_range_only = False
         if ok:
             # only ranges the filter accepted take part in later fixes
