@@ -72,14 +72,14 @@ TENTATIVE_STRAIGHT_DEG = 15.0
 
 
 #: the fixes weighed between the tracker's filter and the progress along a plan
-#: given (:meth:`PlanMatcher._weigh`): each fix's evidence for the filter
-#: (half the difference of its squared Mahalanobis distances from the two
-#: predictions) clipped to ± this, less this drift, summed; the AUV has left
-#: the plan at this level
-TRACK_LLR_CAP = 3.0
-#: … each prediction's share (half its Mahalanobis distance²) clipped to this
-#: first: a fix far from both (a false detection, a wrong mirror) tells neither
+#: given (:meth:`PlanMatcher._weigh`): each prediction's share of a fix (half
+#: its Mahalanobis distance²) capped at this — a fix far from both (a false
+#: detection, a wrong mirror) tells neither —
 TRACK_HALF_D2_CAP = 4.5
+#: … the fix's evidence for the filter (the plan's share less the filter's)
+#: clipped to ± this, less this drift, summed; the AUV has left the plan at
+#: this level
+TRACK_LLR_CAP = 3.0
 TRACK_LLR_DRIFT = 0.5
 TRACK_LLR_LEVEL = 6.0
 
