@@ -162,10 +162,8 @@ class PlanMatcher:
     along: AlongPlan | None = None
     #: the plan is a guess (:meth:`set_plan`)
     tentative: bool = False
-    #: the CUSUM of the fixes' evidence for the filter against the plan
-    #: (:meth:`_weigh`), and the last fix's distance from the plan's prediction (m)
+    #: the CUSUM of the fixes' evidence for the filter against the plan (:meth:`_weigh`)
     _track_llr: float = 0.0
-    _track_gap: float = 0.0
 
     @property
     def state(self) -> str:
@@ -258,8 +256,9 @@ class PlanMatcher:
         if al is None or self.leg < 0 or not fix.emission_utc_s >= al.t:
             return
         al.predict(fix.emission_utc_s, p.along_accel_psd)
-        if track is not None and not self.tentative and self._weigh(fix, al, track):
-            self._leave(f"fixes {self._track_gap:.0f} m from its path follow the track")
+        gap = self._weigh(fix, al, track) if track is not None and not self.tentative else None
+        if gap is not None:
+            self._leave(f"fixes {gap:.0f} m from its path follow the track")
             return
         al.fix(fix, p.along_window_m, p.along_floor_m)
         if al.off_path and not al.near_corner():
@@ -448,10 +447,11 @@ class PlanMatcher:
                 return j
         return -1
 
-    def _weigh(self, fix: AuvFix, al: AlongPlan, track: Predicted) -> bool:
-        """Whether the fixes have been explained better by the tracker's filter
-        than by the progress along the plan for long enough that the AUV has
-        left the plan: a CUSUM of each fix's evidence for the filter — half the
+    def _weigh(self, fix: AuvFix, al: AlongPlan, track: Predicted) -> float | None:
+        """The fix's distance from the plan's prediction (m) if the fixes have
+        been explained better by the tracker's filter than by the progress
+        along the plan for long enough that the AUV has left the plan, else
+        None: a CUSUM of each fix's evidence for the filter — half the
         difference of its squared Mahalanobis distances from the two
         predictions (each capped at TRACK_HALF_D2_CAP), clipped to
         ± TRACK_LLR_CAP, less TRACK_LLR_DRIFT — at TRACK_LLR_LEVEL.  (Without
@@ -465,18 +465,17 @@ class PlanMatcher:
         x, y = fix.x_m, fix.y_m
         cxx, cxy, cyy = fix.cov_xx_m2, fix.cov_xy_m2, fix.cov_yy_m2
         if not all(math.isfinite(v) for v in (x, y, cxx, cxy, cyy, *track)):
-            return False
+            return None
         px, py, pxx, pxy, pyy = al.predicted(self.params.along_floor_m)
         tx, ty, txx, txy, tyy = track
         d_plan = _half_d2(x - px, y - py, pxx + cxx, pxy + cxy, pyy + cyy)
         d_track = _half_d2(x - tx, y - ty, txx + cxx, txy + cxy, tyy + cyy)
         if d_plan is None or d_track is None:
-            return False
+            return None
         z = max(-TRACK_LLR_CAP, min(TRACK_LLR_CAP, min(d_plan, TRACK_HALF_D2_CAP)
                                      - min(d_track, TRACK_HALF_D2_CAP)))
         self._track_llr = max(0.0, self._track_llr + z - TRACK_LLR_DRIFT)
-        self._track_gap = math.hypot(x - px, y - py)
-        return self._track_llr >= TRACK_LLR_LEVEL
+        return math.hypot(x - px, y - py) if self._track_llr >= TRACK_LLR_LEVEL else None
 
     def _leave(self, reason: str) -> None:
         self.leg = -1

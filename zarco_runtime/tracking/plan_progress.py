@@ -227,10 +227,9 @@ class AlongPlan:
             if self._update(s_m, var):
                 self._cross_update(c, var_c)
                 if not self.near_corner():
+                    # (the fix's course on the path: the same leg, off the corners)
                     self.steady_cross, self.steady_var = self.cross, self.Pc[0][0]
-                    _, _, c_now = plan.point_at(self.s, 0.0, self.radius)
-                    self.steady_ne = (-self.cross * math.sin(c_now),
-                                      self.cross * math.cos(c_now))
+                    self.steady_ne = (-self.cross * uy, self.cross * ux)
                 return True
         else:
             self.refused += 1
