@@ -475,3 +475,58 @@ def test_an_auv_running_on_past_a_corner_is_off_its_plan_once_the_filter_explain
     assert t_left <= t_corner + 6.0 / v + 4 * 2.5, (t_left, t_corner)
     assert any(e.startswith("AUV left its plan (fixes") and "follow the track" in e
                for e in m.events), m.events
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_refused_fix_far_from_the_plan_leaves_the_progress_alone(seed: int) -> None:
+    """A fix the tracker's filter refused (a late or false detection paired
+    into a cycle) back along the path from where the AUV would be and to one
+    side, each within the path's own gates (8–11 and 4–6 variances: χ² of one
+    degree of freedom each) but far from the AUV's predicted position (the
+    two together: 12–17 > 9), was taken and threw the progress and its speed
+    off — about a corner, where such a fix lands on the other leg, for tens
+    of seconds.  Now it is left out and counted: the progress after it is the
+    one of a twin matcher never given it.  The same fix accepted by the
+    filter still moves it (only refused outliers are left out).  Checked
+    mid-leg, where along and across the path are exact."""
+    rng = np.random.default_rng(1300 + seed)
+    pts, v, rate = lawnmower(rng)
+    k = 2 * int(rng.integers(1, len(pts) // 2))  # a long leg (not the first)
+    t_mid = (duration(pts[: k + 1], v) + duration(pts[: k + 2], v)) / 2.0
+    auv = auv_on(pts, v, rate)
+    twins = [PlanMatcher(PlanParams()) for _ in range(3)]
+    for m in twins:
+        m.set_plan([tuple(p) for p in pts])
+        fly(m, auv, t_mid, np.random.default_rng(seed))
+        assert m.leg >= 0 and m.along is not None
+    refused, accepted, never = twins
+    al = refused.along
+    assert al is not None and refused.plan is not None
+    t = al.t + 0.5
+    # the variances (m²) along and across the path of the prediction and a fix
+    # of 1 m² a side, each with the floor added to fixes
+    floor2 = PlanParams().along_floor_m ** 2
+    va = al.P[0][0] + 1.0 + floor2
+    vc = al.Pc[0][0] + 1.0 + floor2
+    back = math.sqrt(float(rng.uniform(8.0, 11.0)) * va)
+    side = float(rng.choice([-1.0, 1.0])) * math.sqrt(float(rng.uniform(4.0, 6.0)) * vc)
+    s = refused.plan.advance(al.s, al.u * 0.5 - back, al.radius)
+    fx, fy, _ = refused.plan.point_at(s, al.cross + side, al.radius)
+    for m, ok in ((refused, False), (accepted, True)):
+        m.fix(AuvFix(t, t, 1, fx, fy, fx, fy, 0.0, 0.0, 0.0, ok, False, 1.0, 0.0, 1.0))
+    assert refused.outliers == 1 and accepted.outliers == 0 and never.outliers == 0
+    # taken, it pulls the progress back by metres (left out, it is only predicted)
+    r, c = refused.along, accepted.along
+    assert r is not None and c is not None and r.t == c.t == t
+    assert r.s - c.s > 1.0 or abs(c.cross - r.cross) > 1.0, (r.s, c.s, r.cross, c.cross)
+    t2 = t + 1.5
+    b = auv.truth(t2)
+    nxt = AuvFix(t2, t2, 1, b.x_m, b.y_m, b.x_m, b.y_m, 0.0, 0.0, 0.0, True, False, 1.0, 0.0,
+                 1.0)
+    for m in twins:
+        m.fix(nxt)
+    r, n = refused.along, never.along
+    assert r is not None and n is not None
+    assert r.s == pytest.approx(n.s, abs=1e-6) and r.u == pytest.approx(n.u, abs=1e-6)
+    # (the offset's covariance predicted in one step or two differs by a hair)
+    assert r.cross == pytest.approx(n.cross, abs=0.02)

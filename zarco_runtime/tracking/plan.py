@@ -82,6 +82,11 @@ TRACK_HALF_D2_CAP = 4.5
 TRACK_LLR_CAP = 3.0
 TRACK_LLR_DRIFT = 0.5
 TRACK_LLR_LEVEL = 6.0
+#: a fix the tracker's filter refused, further than this (Mahalanobis distance²,
+#: 2 degrees of freedom) from where the AUV flying its plan would be, is an
+#: outlier (a late or false detection paired into a cycle): it tells neither the
+#: progress nor the weighing anything
+PLAN_OUTLIER_D2 = 9.0
 
 #: a prediction: (x, y) (m) and its covariance (xx, xy, yy, m²)
 Predicted = tuple[float, float, float, float, float]
@@ -152,6 +157,8 @@ class PlanMatcher:
     #: how many times the AUV left the plan, and joined it
     left: int = 0
     joined: int = 0
+    #: fixes left out as outliers of the plan (:meth:`_outlier`)
+    outliers: int = 0
     _cand: int = -1
     _cand_since: float = math.nan
     _bad_since: float = math.nan
@@ -249,13 +256,18 @@ class PlanMatcher:
     def fix(self, fix: AuvFix, track: Predicted | None = None) -> None:
         """A position fix (its emission time ``emission_utc_s`` on this matcher's
         clock), accepted by the tracker's filter or not: it moves the AUV's
-        progress along the plan (which has its own gate).  ``track``: the
+        progress along the plan (which has its own gate) — unless the filter
+        refused it and it is far from the plan's prediction too: an outlier
+        (:meth:`_outlier`), counted and left out.  ``track``: the
         tracker's filter predicted to the fix — (x, y) (m) and its covariance
         (xx, xy, yy, m²) — which the fix is weighed between (:meth:`_weigh`)."""
         al, p = self.along, self.params
         if al is None or self.leg < 0 or not fix.emission_utc_s >= al.t:
             return
         al.predict(fix.emission_utc_s, p.along_accel_psd)
+        if not fix.accepted and self._outlier(fix, al):
+            self.outliers += 1
+            return
         gap = self._weigh(fix, al, track) if track is not None and not self.tentative else None
         if gap is not None:
             self._leave(f"fixes {gap:.0f} m from its path follow the track")
@@ -446,6 +458,23 @@ class PlanMatcher:
                     c - leg.course_rad, math.tau)) < math.radians(TENTATIVE_STRAIGHT_DEG):
                 return j
         return -1
+
+    def _outlier(self, fix: AuvFix, al: AlongPlan) -> bool:
+        """Whether ``fix`` is further than ``PLAN_OUTLIER_D2`` from the plan's
+        prediction (the fix's covariance, or ``along_floor_m``² a side without
+        one: a range-only fix).  Projected on the path, such a fix about a
+        corner can land within the path's gates on the other leg and throw the
+        progress and its speed off for tens of seconds."""
+        x, y = fix.x_m, fix.y_m
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return False
+        fl = self.params.along_floor_m ** 2
+        cxx, cxy, cyy = fix.cov_xx_m2, fix.cov_xy_m2, fix.cov_yy_m2
+        if not all(math.isfinite(v) for v in (cxx, cxy, cyy)):
+            cxx, cxy, cyy = fl, 0.0, fl
+        px, py, pxx, pxy, pyy = al.predicted(self.params.along_floor_m)
+        h = _half_d2(x - px, y - py, pxx + cxx, pxy + cxy, pyy + cyy)
+        return h is not None and 2.0 * h > PLAN_OUTLIER_D2
 
     def _weigh(self, fix: AuvFix, al: AlongPlan, track: Predicted) -> float | None:
         """The fix's distance from the plan's prediction (m) if the fixes have

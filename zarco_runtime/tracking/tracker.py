@@ -293,6 +293,8 @@ class AuvTracker:
         out.update({(k if k == "internal" else f"fix.{k}"): v for k, v in self.dropped.items()})
         if self.acq.mirror_prior:
             out["fix.mirror_prior"] = self.acq.mirror_prior
+        if self.plan.outliers:
+            out["fix.plan_outlier"] = self.plan.outliers
         return out
 
     # ------------------------------------------------------------- clocks
