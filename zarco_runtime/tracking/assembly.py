@@ -94,7 +94,10 @@ class RangeOnly:
     ``refused`` (gated), ``uninitialised`` or ``depth`` (nothing done); then
     the emission time (UTC s), the point (cx, cy) of the range circle nearest
     the prediction (m), the corrected range and the listener's (m), the
-    motion bias removed (m), the range's variance (m²) and the update's d²."""
+    motion bias removed (m), the range's variance (m²) and the update's d²;
+    for a range to one beacon, the range circle's horizontal radius ``rho``
+    (m) and the filter's prediction ``pred`` at the emission time before the
+    update — (x, y) (m) and its covariance (xx, xy, yy, m²)."""
 
     status: str
     t_em: float = math.nan
@@ -105,6 +108,8 @@ class RangeOnly:
     bias: float = 0.0
     var: float = math.nan
     d2: float = math.nan
+    rho: float = math.nan
+    pred: tuple[float, float, float, float, float] | None = None
 
 
 class FixAssembly:
@@ -315,13 +320,15 @@ class FixAssembly:
             return self._heard(kf, cyc.t_i)
 
         t_em, r_l = emission(r)
-        px, py, _, _, _ = kf.predicted(t_em)
+        pred = kf.predicted(t_em)
+        px, py = pred[0], pred[1]
         bias = 0.0
         if p.motion_correction:
             bias = motion_bias(net, idx, r, px, py, depth, kf.x[2], kf.x[3])
             r -= bias
             t_em, r_l = emission(r)
-            px, py, _, _, _ = kf.predicted(t_em)
+            pred = kf.predicted(t_em)
+            px, py = pred[0], pred[1]
         dz = depth - net.depth[idx]
         if horizontal_radius(r, dz) < -1.0:
             return RangeOnly("depth")
@@ -343,7 +350,8 @@ class FixAssembly:
             cx, cy = px, py
         if ok:
             self.remember(idx, t_em, r, var_i)
-        return RangeOnly("ok" if ok else "refused", t_em, cx, cy, r, r_l, bias, var_i, d2)
+        return RangeOnly("ok" if ok else "refused", t_em, cx, cy, r, r_l, bias, var_i, d2, rho,
+                         pred)
 
     # ------------------------------------------------------------ half cycles
 

@@ -101,6 +101,21 @@ def _half_d2(dx: float, dy: float, a: float, b: float, d: float) -> float | None
     return 0.5 * (d * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
 
 
+def _half_range_d2(x: float, y: float, a: float, b: float, d: float, bx: float, by: float,
+                   rho: float, var: float) -> float | None:
+    """Half the squared normalised residual of a range: the point (x, y) (m)
+    of covariance (a, b; b, d) (m²) against the circle of horizontal radius
+    ``rho`` (m) about (``bx``, ``by``), ``var`` (m²) the range's variance;
+    None at the circle's centre."""
+    dx, dy = x - bx, y - by
+    h = math.hypot(dx, dy)
+    if h < 1e-6:
+        return None
+    ux, uy = dx / h, dy / h
+    s = var + ux * ux * a + 2.0 * ux * uy * b + uy * uy * d
+    return 0.5 * (h - rho) ** 2 / s if s > 0.0 else None
+
+
 @dataclass(slots=True)
 class PlanParams:
     """``[tracker.plan]``: matching the AUV to its a-priori plan."""
@@ -501,10 +516,42 @@ class PlanMatcher:
         d_track = _half_d2(x - tx, y - ty, txx + cxx, txy + cxy, tyy + cyy)
         if d_plan is None or d_track is None:
             return None
+        return math.hypot(x - px, y - py) if self._accumulate(d_plan, d_track) else None
+
+    def _accumulate(self, d_plan: float, d_track: float) -> bool:
+        """One measurement's evidence for the filter against the plan (half
+        its Mahalanobis distances² from the two predictions) into the CUSUM
+        of :meth:`_weigh`; True once it is at ``TRACK_LLR_LEVEL``."""
         z = max(-TRACK_LLR_CAP, min(TRACK_LLR_CAP, min(d_plan, TRACK_HALF_D2_CAP)
                                      - min(d_track, TRACK_HALF_D2_CAP)))
         self._track_llr = max(0.0, self._track_llr + z - TRACK_LLR_DRIFT)
-        return math.hypot(x - px, y - py) if self._track_llr >= TRACK_LLR_LEVEL else None
+        return self._track_llr >= TRACK_LLR_LEVEL
+
+    def range_fix(self, t_em: float, bx: float, by: float, rho: float, var: float,
+                  track: Predicted) -> None:
+        """A range on its own (no position: a cycle on the listener's beacon, a
+        reply refused), accepted by the tracker's filter or not, at emission time
+        ``t_em`` (this matcher's clock): the AUV on the circle of horizontal
+        radius ``rho`` (m) about the beacon at (``bx``, ``by``) (NED, m), the
+        range's variance ``var`` (m²).  It does not move the progress (one
+        range does not place the AUV along the path), but it is weighed
+        between the plan's prediction and the filter's ``track`` as a fix is
+        (:meth:`_weigh`): with two beacons every other cycle is such a range,
+        and an AUV turning off its plan at a corner was left to the fixes of
+        the other half, seconds apart."""
+        al = self.along
+        if (al is None or self.leg < 0 or self.tentative or not t_em >= al.t
+                or not all(math.isfinite(v) for v in (bx, by, rho, var, *track))):
+            return
+        al.predict(t_em, self.params.along_accel_psd)
+        px, py, pxx, pxy, pyy = al.predicted(self.params.along_floor_m)
+        d_plan = _half_range_d2(px, py, pxx, pxy, pyy, bx, by, rho, var)
+        d_track = _half_range_d2(*track, bx, by, rho, var)
+        if d_plan is None or d_track is None:
+            return
+        if self._accumulate(d_plan, d_track):
+            off = abs(math.hypot(px - bx, py - by) - rho)
+            self._leave(f"ranges {off:.0f} m from its path follow the track")
 
     def _leave(self, reason: str) -> None:
         self.leg = -1

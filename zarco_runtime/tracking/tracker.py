@@ -587,6 +587,12 @@ class AuvTracker:
             return False
         if res.status != "ok" and fallback:
             return False
+        if res.pred is not None:
+            # weighed between the plan and the filter's prediction as a fix is,
+            # refused or not (a range the filter refuses at a corner it has not
+            # seen yet is the plan's evidence)
+            self.plan.range_fix(res.t_em, self.net.north[idx], self.net.east[idx], res.rho,
+                                res.var, res.pred)
         if not self._one_row_fix(cyc, res, "innovation", out):
             return False
         if self.net.n < 3:
