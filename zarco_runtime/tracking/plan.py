@@ -476,8 +476,8 @@ class PlanMatcher:
 
     def _outlier(self, fix: AuvFix, al: AlongPlan) -> bool:
         """Whether ``fix`` is further than ``PLAN_OUTLIER_D2`` from the plan's
-        prediction (the fix's covariance, or ``along_floor_m``² a side without
-        one: a range-only fix).  Projected on the path, such a fix about a
+        prediction (with the fix's covariance, or ``along_floor_m``² a side for a
+        fix without one).  Projected on the path, such a fix about a
         corner can land within the path's gates on the other leg and throw the
         progress and its speed off for tens of seconds."""
         x, y = fix.x_m, fix.y_m
