@@ -280,10 +280,13 @@ class PlanMatcher:
         if al is None or self.leg < 0 or not fix.emission_utc_s >= al.t:
             return
         al.predict(fix.emission_utc_s, p.along_accel_psd)
-        if not fix.accepted and self._outlier(fix, al):
+        # where the AUV flying its plan would be, and its covariance
+        plan_pred = al.predicted(p.along_floor_m)
+        if not fix.accepted and self._outlier(fix, plan_pred):
             self.outliers += 1
             return
-        gap = self._weigh(fix, al, track) if track is not None and not self.tentative else None
+        gap = (self._weigh(fix, plan_pred, track) if track is not None and not self.tentative
+               else None)
         if gap is not None:
             self._leave(f"fixes {gap:.0f} m from its path follow the track")
             return
@@ -474,9 +477,9 @@ class PlanMatcher:
                 return j
         return -1
 
-    def _outlier(self, fix: AuvFix, al: AlongPlan) -> bool:
+    def _outlier(self, fix: AuvFix, plan_pred: Predicted) -> bool:
         """Whether ``fix`` is further than ``PLAN_OUTLIER_D2`` from the plan's
-        prediction (with the fix's covariance, or ``along_floor_m``² a side for a
+        prediction ``plan_pred`` (with the fix's covariance, or ``along_floor_m``² a side for a
         fix without one).  Projected on the path, such a fix about a
         corner can land within the path's gates on the other leg and throw the
         progress and its speed off for tens of seconds."""
@@ -487,14 +490,14 @@ class PlanMatcher:
         cxx, cxy, cyy = fix.cov_xx_m2, fix.cov_xy_m2, fix.cov_yy_m2
         if not all(math.isfinite(v) for v in (cxx, cxy, cyy)):
             cxx, cxy, cyy = fl, 0.0, fl
-        px, py, pxx, pxy, pyy = al.predicted(self.params.along_floor_m)
+        px, py, pxx, pxy, pyy = plan_pred
         h = _half_d2(x - px, y - py, pxx + cxx, pxy + cxy, pyy + cyy)
         return h is not None and 2.0 * h > PLAN_OUTLIER_D2
 
-    def _weigh(self, fix: AuvFix, al: AlongPlan, track: Predicted) -> float | None:
-        """The fix's distance from the plan's prediction (m) if the fixes have
-        been explained better by the tracker's filter than by the progress
-        along the plan for long enough that the AUV has left the plan, else
+    def _weigh(self, fix: AuvFix, plan_pred: Predicted, track: Predicted) -> float | None:
+        """The fix's distance from the plan's prediction ``plan_pred`` (m) if
+        the fixes have been explained better by the tracker's filter than by
+        the progress along the plan for long enough that the AUV has left it, else
         None: a CUSUM of each fix's evidence for the filter — half the
         difference of its squared Mahalanobis distances from the two
         predictions (each capped at TRACK_HALF_D2_CAP), clipped to
@@ -510,7 +513,7 @@ class PlanMatcher:
         cxx, cxy, cyy = fix.cov_xx_m2, fix.cov_xy_m2, fix.cov_yy_m2
         if not all(math.isfinite(v) for v in (x, y, cxx, cxy, cyy, *track)):
             return None
-        px, py, pxx, pxy, pyy = al.predicted(self.params.along_floor_m)
+        px, py, pxx, pxy, pyy = plan_pred
         tx, ty, txx, txy, tyy = track
         d_plan = _half_d2(x - px, y - py, pxx + cxx, pxy + cxy, pyy + cyy)
         d_track = _half_d2(x - tx, y - ty, txx + cxx, txy + cxy, tyy + cyy)
