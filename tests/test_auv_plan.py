@@ -68,67 +68,44 @@ def fly(matcher: PlanMatcher, auv: Auv, t_end: float, rng: np.random.Generator,
 
 
 def fly_tracked(matcher: PlanMatcher, auv: Auv, t_end: float, rng: np.random.Generator,
-                sigma: float = 1.0, accel_psd: float = 0.004) -> list[tuple[float, int]]:
+                sigma: float = 1.0, accel_psd: float = 0.004,
+                beacon: tuple[float, float] | None = None,
+                ranges: bool = True) -> list[tuple[float, int]]:
     """As :func:`fly`, with a constant-velocity Kalman filter (white
     acceleration ``accel_psd``, m²/s³: the tracker's quiet model, slow to
     turn) fed with the fixes: its prediction to each fix goes to the matcher
-    with the fix, its state after the update to :meth:`PlanMatcher.update`."""
+    with the fix, its state after the update to :meth:`PlanMatcher.update`.
+    With a ``beacon`` (NED, m), a two-beacon network: every other cycle is a
+    range alone (``sigma`` m of noise) to it, which the filter takes as a
+    one-row update and the matcher is given with the filter's prediction
+    (:meth:`PlanMatcher.range_fix`; not with ``ranges`` false)."""
     out = []
     kf = CvKalman(accel_psd)
-    t = 0.0
-    while t < t_end:
-        a = auv.truth(t)
-        ex, ey = rng.normal(0.0, sigma, 2)
-        fx, fy = a.x_m + ex, a.y_m + ey
-        if not kf.initialised:
-            kf.init(t, fx, fy, a.vx_mps, a.vy_mps, sigma ** 2, 0.05 ** 2)
-        fix = AuvFix(t, t, 1, fx, fy, fx, fy, 0.0, 0.0, 0.0, True, False, sigma ** 2, 0.0,
-                     sigma ** 2)
-        matcher.fix(fix, kf.predicted(t))
-        kf.predict(t)
-        kf.update([(1.0, 0.0), (0.0, 1.0)], [fx, fy], [sigma ** 2, sigma ** 2])
-        matcher.update(t, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma(),
-                       math.sqrt(0.5 * (kf.P[2][2] + kf.P[3][3])))
-        out.append((t, matcher.leg))
-        t += float(rng.uniform(1.5, 2.5))
-    return out
-
-
-def fly_ranged(matcher: PlanMatcher, auv: Auv, t_end: float, rng: np.random.Generator,
-               beacon: tuple[float, float], ranges: bool = True, sigma: float = 1.0,
-               accel_psd: float = 0.004) -> list[tuple[float, int]]:
-    """As :func:`fly_tracked` on a two-beacon network: every other cycle a
-    position fix, the others a range alone (``sigma`` m of noise) to
-    ``beacon`` (NED, m), which the filter takes as a one-row update and the
-    matcher is given with the filter's prediction (:meth:`PlanMatcher.range_fix`;
-    not with ``ranges`` false)."""
-    out = []
-    kf = CvKalman(accel_psd)
-    bx, by = beacon
     t = 0.0
     for i in itertools.count():
         if t >= t_end:
             break
         a = auv.truth(t)
-        if not kf.initialised:
-            kf.init(t, a.x_m, a.y_m, a.vx_mps, a.vy_mps, sigma ** 2, 0.05 ** 2)
-        pred = kf.predicted(t)
-        if i % 2 == 0:
-            ex, ey = rng.normal(0.0, sigma, 2)
-            fx, fy = a.x_m + ex, a.y_m + ey
-            matcher.fix(AuvFix(t, t, 1, fx, fy, fx, fy, 0.0, 0.0, 0.0, True, False,
-                               sigma ** 2, 0.0, sigma ** 2), pred)
-            kf.predict(t)
-            kf.update([(1.0, 0.0), (0.0, 1.0)], [fx, fy], [sigma ** 2, sigma ** 2])
-        else:
+        if beacon is not None and i % 2 == 1:
+            bx, by = beacon
             r = math.hypot(a.x_m - bx, a.y_m - by) + float(rng.normal(0.0, sigma))
             if ranges:
-                matcher.range_fix(t, bx, by, r, sigma ** 2, pred)
+                matcher.range_fix(t, bx, by, r, sigma ** 2, kf.predicted(t))
             kf.predict(t)
             px, py = kf.x[0], kf.x[1]
             h = math.hypot(px - bx, py - by)
             row = ((px - bx) / h, (py - by) / h)
             kf.update([row], [r - h + row[0] * px + row[1] * py], [sigma ** 2])
+        else:
+            ex, ey = rng.normal(0.0, sigma, 2)
+            fx, fy = a.x_m + ex, a.y_m + ey
+            if not kf.initialised:
+                kf.init(t, fx, fy, a.vx_mps, a.vy_mps, sigma ** 2, 0.05 ** 2)
+            fix = AuvFix(t, t, 1, fx, fy, fx, fy, 0.0, 0.0, 0.0, True, False, sigma ** 2,
+                         0.0, sigma ** 2)
+            matcher.fix(fix, kf.predicted(t))
+            kf.predict(t)
+            kf.update([(1.0, 0.0), (0.0, 1.0)], [fx, fy], [sigma ** 2, sigma ** 2])
         matcher.update(t, kf.x[0], kf.x[1], kf.x[2], kf.x[3], kf.pos_sigma(),
                        math.sqrt(0.5 * (kf.P[2][2] + kf.P[3][3])))
         out.append((t, matcher.leg))
@@ -600,8 +577,8 @@ def test_ranges_alone_are_weighed_so_an_auv_leaving_its_plan_is_seen_sooner() ->
             beacon = _beacon_near(float(b[0]), float(b[1]), rng)
             m = PlanMatcher(PlanParams())
             m.set_plan([(p[0], p[1]) for p in pts])
-            hist = fly_ranged(m, auv_on(route, v, rate), duration(route, v) - 2.0,
-                              np.random.default_rng(seed), beacon, ranges)
+            hist = fly_tracked(m, auv_on(route, v, rate), duration(route, v) - 2.0,
+                               np.random.default_rng(seed), beacon=beacon, ranges=ranges)
             t_corner = duration(pts[: k + 1], v)
             t_left = next(t for t, leg in hist if t > t_corner - 15.0 and leg == -1)
             delays[ranges].append(t_left - t_corner)
@@ -621,7 +598,7 @@ def test_ranges_alone_do_not_take_an_auv_flying_its_plan_off_it(seed: int) -> No
     beacon = _beacon_near(pts[0][0], pts[0][1], rng)
     m = PlanMatcher(PlanParams())
     m.set_plan([(p[0], p[1]) for p in pts])
-    hist = fly_ranged(m, auv_on(pts, v, rate), duration(pts, v) - 2.0,
-                      np.random.default_rng(seed), beacon)
+    hist = fly_tracked(m, auv_on(pts, v, rate), duration(pts, v) - 2.0,
+                       np.random.default_rng(seed), beacon=beacon)
     assert m.left == 0 and m.joined == 1, m.events
     assert hist[-1][1] == len(pts) - 2

@@ -479,10 +479,11 @@ class PlanMatcher:
 
     def _outlier(self, fix: AuvFix, plan_pred: Predicted) -> bool:
         """Whether ``fix`` is further than ``PLAN_OUTLIER_D2`` from the plan's
-        prediction ``plan_pred`` (with the fix's covariance, or ``along_floor_m``² a side for a
-        fix without one).  Projected on the path, such a fix about a
-        corner can land within the path's gates on the other leg and throw the
-        progress and its speed off for tens of seconds."""
+        prediction ``plan_pred`` (with the fix's covariance, or
+        ``along_floor_m``² a side for a fix without one).  Projected on the
+        path, such a fix about a corner can land within the path's gates on
+        the other leg and throw the progress and its speed off for tens of
+        seconds."""
         x, y = fix.x_m, fix.y_m
         if not (math.isfinite(x) and math.isfinite(y)):
             return False
@@ -497,8 +498,8 @@ class PlanMatcher:
     def _weigh(self, fix: AuvFix, plan_pred: Predicted, track: Predicted) -> float | None:
         """The fix's distance from the plan's prediction ``plan_pred`` (m) if
         the fixes have been explained better by the tracker's filter than by
-        the progress along the plan for long enough that the AUV has left it, else
-        None: a CUSUM of each fix's evidence for the filter — half the
+        the progress along the plan for long enough that the AUV has left it,
+        else None: a CUSUM of each fix's evidence for the filter — half the
         difference of its squared Mahalanobis distances from the two
         predictions (each capped at TRACK_HALF_D2_CAP), clipped to
         ± TRACK_LLR_CAP, less TRACK_LLR_DRIFT — at TRACK_LLR_LEVEL.  (Without
