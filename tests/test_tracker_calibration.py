@@ -6,7 +6,9 @@ with its σ); a third beacon makes it observable.  The tracker on the
 simulated acoustic world: a true sound speed up to 1 % off the configured one
 is estimated within 0.2 % 300 s after acquisition and stays there; a
 turnaround 1.5 ms off is taken for a range bias on its beacon; the shore and
-the recording read the estimate from the track.
+the recording read the estimate from the track.  A hypothesis whose position
+strayed onto the mirror of beacons nearly in a line is brought back to the
+motion filter's, and its sound speed with it.
 """
 
 from __future__ import annotations
@@ -119,6 +121,80 @@ def test_a_sound_speed_up_to_1_percent_off_is_found_within_0_2_percent_in_300_s(
     # position within 1 m of the truth half the time
     errs = sorted(r.position_error(s) for s in later)
     assert errs[len(errs) // 2] < 1.0
+
+
+def _mirrored(seed: int, anchored: bool) -> tuple[SoundSpeedEstimator, float, float, int]:
+    """Three beacons nearly in a line (the middle one 5 m off it), an AUV
+    flying along it 40 m to its side at 1 m/s, ranges computed at 1485 m/s and
+    read at the configured 1500 m/s; 200 s in, every hypothesis's position is
+    put on the mirror across the line (where the ranges nearly fit, as after a
+    turn its constant-velocity model coasted through).  With ``anchored`` the
+    motion filter's state (here the truth, σ 1 m) is offered before every
+    cycle.  Returns the estimator, the worst relative error of its sound speed
+    after 300 s, its position's error at the end (m), and how many
+    hypotheses were restarted."""
+    beacons = [[0.0, 0.0, 30.0], [250.0, 5.0, 25.0], [500.0, 0.0, 35.0]]
+    net_p = LblNetworkParams(beacons=beacons, turnaround_s=[0.1] * 3)
+    net = Network.from_params(net_p)
+    est = SoundSpeedEstimator(TrackerParams(network=net_p, auv_depth_m=10.0), net)
+    rng = np.random.default_rng(seed)
+    c_true = 1485.0
+    k = c_true / net.c
+
+    def rho(b: int, x: float, y: float) -> float:
+        return math.dist((x, y, 10.0), (net.north[b], net.east[b], net.depth[b]))
+
+    p4 = [[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.01, 0], [0, 0, 0, 0.01]]
+    x, y, t = 50.0, 40.0, 0.0
+    est.start(t, x, y, 1.0, 0.0, p4)
+    worst, restarted = 0.0, 0
+    for j in range(210):
+        t += 2.0
+        x += 2.0
+        b = 1 + j % 2
+        est.predict(t)
+        if t == 200.0:
+            for m in est.models:
+                m.x[1] = -m.x[1]
+        if anchored:
+            restarted += est.anchor(x, y, 1.0, 0.0, p4)
+        ti, tn, tr = rng.normal(0.0, 0.0005, 3) * net.c
+        est.beacon_range(b, rho(b, x, y) / k + 0.5 * (tn - ti), 0.5 * 0.75**2 + 0.25)
+        m_l = (rho(net.listener, x, y) - net.d[b]) / k + net.d[b]
+        est.listener_range(b, m_l + 0.5 * (tn + ti) - tr, 1.5 * 0.75**2 + 0.25)
+        if t > 300.0:
+            worst = max(worst, abs(est.sound_speed_mps - c_true) / c_true)
+    return est, worst, math.dist((est.best.x[0], est.best.x[1]), (x, y)), restarted
+
+
+@pytest.mark.parametrize("seed", [31, 32, 33])
+def test_a_hypothesis_on_the_mirror_is_brought_back_to_the_motion_filter(seed: int) -> None:
+    # left there, the ranges nearly fit and the sound speed bends to fit the
+    # rest: the trap is real ...
+    _, worst, off, _ = _mirrored(seed, anchored=False)
+    assert off > 50.0 and worst > 0.002
+    # ... and the motion filter's state gets every hypothesis out of it once,
+    # the sound speed within 0.2 % from 300 s on
+    est, worst, off, restarted = _mirrored(seed, anchored=True)
+    assert restarted == len(est.models)
+    assert off < 3.0 and worst <= 0.002
+
+
+def test_hypotheses_near_the_motion_filter_are_left_alone() -> None:
+    est = _synthetic(FOUR[:3], [1, 2], 1485.0, 100.0, 4)
+    before = [(m.x.copy(), m.P.copy()) for m in est.models]
+    x, y = est.best.x[0], est.best.x[1]
+    p4 = [[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.01, 0], [0, 0, 0, 0.01]]
+    # 4 m off: within ANCHOR_M whatever the covariances
+    assert est.anchor(x + 4.0, y, 0.0, 1.0, p4) == 0
+    for m, (xb, pb) in zip(est.models, before, strict=True):
+        assert np.array_equal(m.x, xb) and np.array_equal(m.P, pb)
+    # 30 m off: every hypothesis restarts there, its k and biases kept
+    ks = [m.sound_speed_mps for m in est.models]
+    assert est.anchor(x + 30.0, y, 0.0, 1.0, p4) == len(est.models)
+    for m, c in zip(est.models, ks, strict=True):
+        assert m.x[0] == x + 30.0 and m.x[1] == y
+        assert m.sound_speed_mps == c
 
 
 def test_with_estimation_off_the_configured_sound_speed_is_kept() -> None:

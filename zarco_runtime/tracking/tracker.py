@@ -78,7 +78,9 @@ beacons'; ``half_cycle_refused``, ``half_cycle_uninitialised``,
 ``half_cycle_geometry``: a half cycle whose combination barely depends on the
 position) and for tracker events (``maneuver``, ``reacquired``, ``reanchored``,
 ``clock_resync``, ``reply_refused``, ``spin``, ``plan_straight``, ``mirror_prior``:
-the prior resolved the mirror of beacons in a line, :mod:`.acquire`), ``internal``
+the prior resolved the mirror of beacons in a line, :mod:`.acquire`;
+``calibration_restarted``: a sound-speed hypothesis strayed from the filter and
+was restarted from it, :mod:`.calibration`), ``internal``
 for any unexpected exception (never raised: the tests assert it stays absent).
 
 Pure and deterministic: no I/O, no clock reads.
@@ -419,6 +421,9 @@ class AuvTracker:
             self._cal_restart = False
             return
         cal.predict(t_em)
+        dt = t_em - kf.t  # the filter holds this cycle: 0 but for rounding
+        if cal.anchor(kf.x[0] + kf.x[2] * dt, kf.x[1] + kf.x[3] * dt, kf.x[2], kf.x[3], kf.P):
+            self.dropped["calibration_restarted"] += 1
         rg0 = cycle_ranges(cyc, self.net0)
         cal.beacon_range(idx, rg0.r_i - bias, var_i)
         if reply and idx != self.net0.listener:
