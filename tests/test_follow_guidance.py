@@ -16,6 +16,8 @@ from zarco_runtime.guidance.follow import (
     FACE_COURSE_MPS,
     PLAN_SETTLE_CROSS_M,
     PLAN_SETTLE_MAX_S,
+    TRAIL_BEFORE_M,
+    TRAIL_M,
     FollowGuidance,
     FollowSettings,
     target_now,
@@ -480,6 +482,35 @@ def test_a_corner_of_a_guessed_plan_is_taken_once_the_auv_turns_there() -> None:
                                   t=101.0, t0=101.0)
     guessed.update(turning, 101.0, 96.5, 0.0)
     assert guessed.target is not None and guessed.target.source == "plan"
+
+
+def test_before_a_guessed_corner_the_boat_drops_back_a_little() -> None:
+    """Approaching a corner of a plan the tracker guessed, which the AUV may
+    turn or fly straight past, the boat's speed reference drops it back
+    ``TRAIL_M`` behind the track's target (it would close a gap of that much
+    over ``catchup_tau_s``); further from the corner, past it, or on a plan
+    given (whose target it follows round the corner), it does not."""
+    cfg = FollowSettings()
+    plan = ((0.0, 0.0), (100.0, 0.0), (100.0, 20.0), (0.0, 20.0))
+
+    def ref(source: str | None, x: float) -> float:
+        tr = dataclasses.replace(_track(x=x, vx=1.5), plan_leg=0, plan_s_m=x,
+                                 plan_speed_mps=1.5, plan_cross_m=0.0,
+                                 plan_turn_radius_m=6.0)
+        g = FollowGuidance(cfg)
+        if source is not None:
+            g.set_plan(AuvPlan(0.0, plan, source))
+        _moving(g, tr, (x, 0.0))
+        return g.update(tr, tr.t, x, 0.0).speed_ref_mps
+
+    for x in (100.0 - TRAIL_BEFORE_M + 1.0, 97.0):
+        # on the target, at the AUV's speed without a plan; dropping back with a guessed one
+        assert ref(None, x) == pytest.approx(1.5)
+        assert ref("tracker", x) == pytest.approx(1.5 - TRAIL_M / cfg.catchup_tau_s)
+    assert ref("tracker", 100.0 - TRAIL_BEFORE_M - 10.0) == pytest.approx(1.5)
+    assert ref("tracker", 103.0) == pytest.approx(1.5)  # past it, flying on
+    # on a plan given the boat is on the plan's target, cutting the corner
+    assert ref("mission", 97.0) > 0.0
 
 
 def test_past_a_corner_the_plan_is_followed_until_the_filter_is_on_the_new_leg() -> None:

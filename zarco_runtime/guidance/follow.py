@@ -7,7 +7,10 @@ path turns where the plan's legs turn, so the boat turns with the AUV at a
 corner instead of after the track has seen the turn (on a plan the tracker
 guessed, :mod:`~zarco_runtime.tracking.plan_infer`, once the filter has the
 AUV turning there: the survey may have ended, and only while the plan's
-target stays within ``PLAN_GATE_M`` of the filter's position).
+target stays within ``PLAN_GATE_M`` of the filter's position; approaching
+such a corner the boat drops back ``TRAIL_M`` behind the track's target:
+that much less to overshoot if the AUV turns, that much to close again if
+it flies on).
 
 Two laws (``follow.law``):
 
@@ -113,6 +116,13 @@ TENTATIVE_TURN_DEG = 11.0
 #: a guessed plan's target is followed only within this (m, plus 3σ of the
 #: filter's position) of the filter's position carried to now
 PLAN_GATE_M = 8.0
+#: on a plan the tracker guessed, while the track's target is within this
+#: (m) before a corner the AUV has not yet been seen to turn, the boat's speed
+#: reference drops it back this far (m) behind the target: if the AUV turns,
+#: the boat has that much less to overshoot; if it flies on (the survey's
+#: end), that much to close again, under 4 m
+TRAIL_BEFORE_M = 12.0
+TRAIL_M = 2.5
 #: a still AUV further than this many position σ (and 1 m) is closed in on
 #: before its track has settled
 APPROACH_SIGMAS = 4.0
@@ -254,6 +264,9 @@ class FollowGuidance:
         self._plan_leg_id = -1
         #: when (s) the AUV was last followed on its plan, and the plan's course there
         self._plan_course: tuple[float, float] | None = None
+        #: how far (m) the boat drops back behind the target before a guessed
+        #: corner (``TRAIL_M``, set by :meth:`_on_plan`), else 0
+        self._trail_m = 0.0
 
     @property
     def moving(self) -> bool:
@@ -377,7 +390,8 @@ class FollowGuidance:
             v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v_ref))
         else:
             theta = math.remainder(psi - math.atan2(ay - tg.y, ax - tg.x), math.tau)
-            v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps, v - a / cfg.catchup_tau_s))
+            v_ref = max(cfg.min_speed_mps, min(cfg.max_speed_mps,
+                                               v - (a + self._trail_m) / cfg.catchup_tau_s))
             v_ref = min(cfg.max_speed_mps, v_ref / max(math.cos(theta), 0.5))
         dist = math.hypot(tg.x - x, tg.y - y)
         if a <= 0.5 * dist:
@@ -392,8 +406,8 @@ class FollowGuidance:
         # the along-track trim only pushes forward: ahead of the AUV the speed
         # reference slows the boat, and a reverse thrust would drive it the wrong
         # way while it still faces away from the AUV's course
-        return FollowState("follow", leg, c, max(-a, 0.0), v_ref, "", tg.source, cfg.k_s,
-                           cfg.k_i)
+        return FollowState("follow", leg, c, max(-a - self._trail_m, 0.0), v_ref, "",
+                           tg.source, cfg.k_s, cfg.k_i)
 
     def _paper(self, tg: Target, path: StraightPath | PlanPath, x: float,
                y: float) -> FollowState:
@@ -458,7 +472,10 @@ class FollowGuidance:
         plan's start: there the plan's target turns with the AUV where the
         filter's lags, and is on the next line while the filter settles on it;
         along a leg the track alone is as good, and follows at once an AUV that
-        turns off its plan mid-leg, before the tracker has made sure it left."""
+        turns off its plan mid-leg, before the tracker has made sure it left.
+        Before a guessed corner the AUV has not turned yet (within
+        ``TRAIL_BEFORE_M``), None, and the boat drops back ``TRAIL_M``."""
+        self._trail_m = 0.0
         plan, msg = self.plan, self._plan_msg
         if plan is None or msg is None or track.t < msg.t or track.plan_leg < 0:
             self._sm_plan = None
@@ -498,6 +515,9 @@ class FollowGuidance:
             if abs(math.remainder(kc - before.course_rad, math.tau)) < math.radians(
                     TENTATIVE_TURN_DEG):
                 self._sm_plan = None
+                if not after and to <= TRAIL_BEFORE_M:
+                    # it may turn there or fly on: hedge, a little behind it
+                    self._trail_m = TRAIL_M
                 return None
         r = path.radius
         sm = self._sm_plan
