@@ -473,8 +473,9 @@ class FollowGuidance:
         filter's lags, and is on the next line while the filter settles on it;
         along a leg the track alone is as good, and follows at once an AUV that
         turns off its plan mid-leg, before the tracker has made sure it left.
-        Before a guessed corner the AUV has not turned yet (within
-        ``TRAIL_BEFORE_M``), None, and the boat drops back ``TRAIL_M``."""
+        Within ``TRAIL_BEFORE_M`` before a guessed corner that the AUV has not
+        yet turned: None, with :attr:`_trail_m` set to ``TRAIL_M`` (the boat
+        drops back that far)."""
         self._trail_m = 0.0
         plan, msg = self.plan, self._plan_msg
         if plan is None or msg is None or track.t < msg.t or track.plan_leg < 0:
