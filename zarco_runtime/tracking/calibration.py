@@ -89,6 +89,7 @@ import math
 
 import numpy as np
 
+from zarco_runtime.tracking.gates import mahalanobis2
 from zarco_runtime.tracking.params import Network, TrackerParams
 
 #: innovations beyond this χ² (1 dof) are not used by the calibration
@@ -371,11 +372,9 @@ class SoundSpeedEstimator:
             ex, ey = m.x[0] - x, m.x[1] - y
             if math.hypot(ex, ey) <= ANCHOR_M:
                 continue
-            a = m.P[0, 0] + P4[0][0]
-            b = m.P[0, 1] + P4[0][1]
-            d = m.P[1, 1] + P4[1][1]
-            det = a * d - b * b
-            if det <= 0.0 or (d * ex * ex - 2.0 * b * ex * ey + a * ey * ey) / det > ANCHOR_CHI2:
+            m2 = mahalanobis2(ex, ey, m.P[0, 0] + P4[0][0], m.P[0, 1] + P4[0][1],
+                              m.P[1, 1] + P4[1][1])
+            if m2 is None or m2 > ANCHOR_CHI2:
                 m.start(m.t, x, y, vx, vy, P4)
                 n += 1
         return n

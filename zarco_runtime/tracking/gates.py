@@ -37,6 +37,15 @@ from statistics import median
 NOISE_WINDOW = 31
 #: the scale's bounds (variance ratio)
 NOISE_SCALE_MAX = 25.0
+def mahalanobis2(dx: float, dy: float, a: float, b: float, d: float) -> float | None:
+    """The Mahalanobis distance² of an offset (dx, dy) (m) under the 2×2
+    covariance (a, b; b, d) (m²); None when that is not positive definite."""
+    det = a * d - b * b
+    if not det > 0.0:
+        return None
+    return (d * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
+
+
 def chi2_median_per_dof(dof: int) -> float:
     """Median of χ²/dof for ``dof`` degrees of freedom (Wilson–Hilferty beyond 2)."""
     if dof == 1:

@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 
 from zarco_core.auv_messages import AuvFix, AuvTrack
 from zarco_core.config import spec
+from zarco_runtime.tracking.gates import mahalanobis2
 from zarco_runtime.tracking.plan_geometry import (
     MAX_POINTS,
     Plan,
@@ -95,10 +96,8 @@ Predicted = tuple[float, float, float, float, float]
 def _half_d2(dx: float, dy: float, a: float, b: float, d: float) -> float | None:
     """Half the Mahalanobis distance² of an offset (dx, dy) (m) under the
     covariance (a, b; b, d) (m²); None if singular."""
-    det = a * d - b * b
-    if not det > 0.0:
-        return None
-    return 0.5 * (d * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
+    m2 = mahalanobis2(dx, dy, a, b, d)
+    return None if m2 is None else 0.5 * m2
 
 
 def _half_range_d2(x: float, y: float, a: float, b: float, d: float, bx: float, by: float,

@@ -421,7 +421,9 @@ class AuvTracker:
             self._cal_restart = False
             return
         cal.predict(t_em)
-        dt = t_em - kf.t  # the filter holds this cycle: 0 but for rounding
+        # the filter's time is not always the cycle's emission (up to 0.7 s
+        # apart when another update came in between): carried to it
+        dt = t_em - kf.t
         if cal.anchor(kf.x[0] + kf.x[2] * dt, kf.x[1] + kf.x[3] * dt, kf.x[2], kf.x[3], kf.P):
             self.dropped["calibration_restarted"] += 1
         rg0 = cycle_ranges(cyc, self.net0)
