@@ -40,11 +40,6 @@ def _synthetic(beacons: list[list[float]], cycles_on: list[int], c_true: float,
     net = Network.from_params(net_p)
     est = SoundSpeedEstimator(params, net)
     rng = np.random.default_rng(seed)
-    k = c_true / net.c  # true ranges = k × nominal
-
-    def rho(b: int, x: float, y: float) -> float:
-        return math.dist((x, y, 10.0), (net.north[b], net.east[b], net.depth[b]))
-
     x, y, t = 150.0, 60.0, 0.0
     est.start(t, x + 2.0, y - 2.0, 0.0, 1.0, [[4.0, 0, 0, 0], [0, 4.0, 0, 0],
                                                [0, 0, 0.01, 0], [0, 0, 0, 0.01]])
@@ -55,13 +50,26 @@ def _synthetic(beacons: list[list[float]], cycles_on: list[int], c_true: float,
         b = cycles_on[j % len(cycles_on)]
         j += 1
         est.predict(t)
-        ti, tn, tr = rng.normal(0.0, 0.0005, 3) * net.c
-        var_i = 0.5 * (0.75**2) + 0.25
-        est.beacon_range(b, rho(b, x, y) / k + 0.5 * (tn - ti), var_i)
-        if b != net.listener:
-            m_l = (rho(net.listener, x, y) - net.d[b]) / k + net.d[b]
-            est.listener_range(b, m_l + 0.5 * (tn + ti) - tr, 1.5 * 0.75**2 + 0.25)
+        _cycle(est, net, rng, c_true, b, x, y)
     return est
+
+
+def _cycle(est: SoundSpeedEstimator, net: Network, rng: np.random.Generator, c_true: float,
+           b: int, x: float, y: float) -> None:
+    """Feed ``est`` a cycle on beacon index ``b`` of an AUV at (x, y) (NED m,
+    10 m deep): its ranges computed at ``c_true``, read at the configured
+    sound speed, with 0.5 ms of jitter on each detection (the listener's
+    range too unless ``b`` is the listener)."""
+    k = c_true / net.c  # true ranges = k × nominal
+
+    def rho(j: int) -> float:
+        return math.dist((x, y, 10.0), (net.north[j], net.east[j], net.depth[j]))
+
+    ti, tn, tr = rng.normal(0.0, 0.0005, 3) * net.c
+    est.beacon_range(b, rho(b) / k + 0.5 * (tn - ti), 0.5 * 0.75**2 + 0.25)
+    if b != net.listener:
+        m_l = (rho(net.listener) - net.d[b]) / k + net.d[b]
+        est.listener_range(b, m_l + 0.5 * (tn + ti) - tr, 1.5 * 0.75**2 + 0.25)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -139,11 +147,6 @@ def _mirrored(seed: int, anchored: bool) -> tuple[SoundSpeedEstimator, float, fl
     est = SoundSpeedEstimator(TrackerParams(network=net_p, auv_depth_m=10.0), net)
     rng = np.random.default_rng(seed)
     c_true = 1485.0
-    k = c_true / net.c
-
-    def rho(b: int, x: float, y: float) -> float:
-        return math.dist((x, y, 10.0), (net.north[b], net.east[b], net.depth[b]))
-
     p4 = [[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.01, 0], [0, 0, 0, 0.01]]
     x, y, t = 50.0, 40.0, 0.0
     est.start(t, x, y, 1.0, 0.0, p4)
@@ -158,10 +161,7 @@ def _mirrored(seed: int, anchored: bool) -> tuple[SoundSpeedEstimator, float, fl
                 m.x[1] = -m.x[1]
         if anchored:
             restarted += est.anchor(x, y, 1.0, 0.0, p4)
-        ti, tn, tr = rng.normal(0.0, 0.0005, 3) * net.c
-        est.beacon_range(b, rho(b, x, y) / k + 0.5 * (tn - ti), 0.5 * 0.75**2 + 0.25)
-        m_l = (rho(net.listener, x, y) - net.d[b]) / k + net.d[b]
-        est.listener_range(b, m_l + 0.5 * (tn + ti) - tr, 1.5 * 0.75**2 + 0.25)
+        _cycle(est, net, rng, c_true, b, x, y)
         if t > 300.0:
             worst = max(worst, abs(est.sound_speed_mps - c_true) / c_true)
     return est, worst, math.dist((est.best.x[0], est.best.x[1]), (x, y)), restarted
