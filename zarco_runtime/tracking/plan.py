@@ -491,8 +491,8 @@ class PlanMatcher:
         if not all(math.isfinite(v) for v in (cxx, cxy, cyy)):
             cxx, cxy, cyy = fl, 0.0, fl
         px, py, pxx, pxy, pyy = plan_pred
-        h = _half_d2(x - px, y - py, pxx + cxx, pxy + cxy, pyy + cyy)
-        return h is not None and 2.0 * h > PLAN_OUTLIER_D2
+        m2 = mahalanobis2(x - px, y - py, pxx + cxx, pxy + cxy, pyy + cyy)
+        return m2 is not None and m2 > PLAN_OUTLIER_D2
 
     def _weigh(self, fix: AuvFix, plan_pred: Predicted, track: Predicted) -> float | None:
         """The fix's distance from the plan's prediction ``plan_pred`` (m) if
