@@ -258,3 +258,39 @@ def test_a_multipath_copy_of_an_interrogation_is_not_the_next_ping() -> None:
     assert asm.push(_ev(t_i + 0.012, "I", 2)) is None  # late copy, 12 ms
     cyc = asm.push(_ev(t_i2, "I", 3))
     assert cyc is not None and cyc.t_i == t_i  # measured from the direct arrival
+
+
+def _snr_ev(utc: float, kind: str, beacon: int, snr_db: float) -> AcousticEvent:
+    return AcousticEvent(utc - EPOCH + 0.05, "buoy", utc, kind, beacon, snr_db)
+
+
+def test_a_weak_late_copy_alone_does_not_close_the_cycle() -> None:
+    """The closing interrogation's direct arrival is missed and its multipath
+    copy, 12 ms late and 7 dB down, is all the listener hears: the copy is
+    dropped as weak instead of closing the cycle 9 m long."""
+    net = _net()
+    asm = _asm(net)
+    t = EPOCH
+    order = [1, 2, 0]
+    cycles = []
+    for k in range(12):
+        i = order[k % 3]
+        t_i, t_r, t_next = _cycle_times(net, i, t)
+        asm.push(_snr_ev(t_i, "I", net.ids[i], 20.0 + 0.5 * (k % 3)))
+        cyc = asm.push(_snr_ev(t_r, "R", net.ids[i], 15.0 + 0.5 * (k % 2)))
+        cycles.append(cyc)
+        t = t_next
+    i = order[12 % 3]
+    t_i, t_r, t_next = _cycle_times(net, i, t)
+    asm.push(_snr_ev(t_i, "I", net.ids[i], 20.0))
+    asm.push(_snr_ev(t_r, "R", net.ids[i], 15.0))
+    nxt = order[13 % 3]
+    t_i2, _, _ = _cycle_times(net, nxt, t_next)
+    assert asm.push(_snr_ev(t_i2 + 0.012, "I", net.ids[nxt], 13.0)) is None
+    assert asm.dropped["weak"] == 1
+    # the same copy as strong as the direct arrivals would have closed it, late
+    strong = _asm(net)
+    strong.push(_snr_ev(t_i, "I", net.ids[i], 20.0))
+    strong.push(_snr_ev(t_r, "R", net.ids[i], 15.0))
+    cyc = strong.push(_snr_ev(t_i2 + 0.012, "I", net.ids[nxt], 20.0))
+    assert cyc is not None and cyc.t_next == t_i2 + 0.012

@@ -52,6 +52,8 @@ a reason; every cycle lost in :attr:`CycleAssembler.cycles_dropped`.  Reasons:
 ``unknown_beacon``   beacon id not in the network
 ``duplicate``        same kind, beacon and time (±0.5 µs) as a recent event
 ``out_of_order``     earlier than the last accepted event
+``weak``             an SNR far below its kind's recent ones: a late multipath
+                     copy or a false detection, most likely (:mod:`.weak`)
 ``impossible_timing`` an ``I`` too soon after an answered one to be the AUV's
 ``gate``             an ``R`` outside every open reply window
 ``late_arrival``     an ``R`` for an interrogation already answered
@@ -73,6 +75,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from zarco_runtime.tracking.params import Network
+from zarco_runtime.tracking.weak import WeakArrivals
 
 #: two events closer than this (s) with the same kind and beacon are duplicates
 DUP_EPS_S = 0.5e-6
@@ -112,7 +115,7 @@ class CycleAssembler:
     __slots__ = ("_cands", "_last_utc", "_open", "_orphan", "_prev_i", "_recent", "_seq_next",
                  "accepted", "cycles", "cycles_dropped", "cycles_no_reply", "cycles_partial",
                  "dropped", "margin_m", "max_range_m", "n_sigma", "net", "partial", "predictor",
-                 "r_min")
+                 "r_min", "weak")
 
     def __init__(self, net: Network, auv_depth_m: float, max_range_m: float,
                  sequence: list[int] | None = None,
@@ -151,6 +154,8 @@ class CycleAssembler:
         self._open: tuple[int, float, float, float, float, float] | None = None
         self._recent: deque[tuple[str, int, float]] = deque(maxlen=DUP_MEMORY)
         self._last_utc = -math.inf
+        #: the arrivals' recent SNR levels (:mod:`.weak`)
+        self.weak = WeakArrivals()
 
     def reset(self, clock: bool = False) -> None:
         """Forget every pending interrogation and open cycle (counters kept);
@@ -191,6 +196,10 @@ class CycleAssembler:
                 return None
         if utc < self._last_utc - DUP_EPS_S:
             self.dropped["out_of_order"] += 1
+            return None
+        snr = getattr(ev, "snr_db", math.nan)
+        if type(snr) in (float, int) and self.weak.weak(kind, idx, float(snr)):
+            self.dropped["weak"] += 1
             return None
         self.accepted += 1
         self._recent.append((kind, beacon, utc))
