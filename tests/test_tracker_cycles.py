@@ -272,13 +272,11 @@ def test_a_weak_late_copy_alone_does_not_close_the_cycle() -> None:
     asm = _asm(net)
     t = EPOCH
     order = [1, 2, 0]
-    cycles = []
     for k in range(12):
         i = order[k % 3]
         t_i, t_r, t_next = _cycle_times(net, i, t)
         asm.push(_snr_ev(t_i, "I", net.ids[i], 20.0 + 0.5 * (k % 3)))
-        cyc = asm.push(_snr_ev(t_r, "R", net.ids[i], 15.0 + 0.5 * (k % 2)))
-        cycles.append(cyc)
+        asm.push(_snr_ev(t_r, "R", net.ids[i], 15.0 + 0.5 * (k % 2)))
         t = t_next
     i = order[12 % 3]
     t_i, t_r, t_next = _cycle_times(net, i, t)

@@ -73,5 +73,3 @@ def test_nothing_is_weak_before_the_history_nor_without_an_snr() -> None:
     assert not weak.weak("I", 0, -10.0)   # the history was one short
     assert weak.weak("I", 0, -10.0)
     assert not weak.weak("I", 0, math.nan)
-    weak.clear()
-    assert not weak.weak("I", 0, -10.0)

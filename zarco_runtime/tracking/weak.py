@@ -74,10 +74,6 @@ class WeakArrivals:
         hist.append(snr_db)
         return weak
 
-    def clear(self) -> None:
-        """Forget every level (the listener or its channel changed)."""
-        self._hist.clear()
-
 
 def _median(ordered: list[float]) -> float:
     n = len(ordered)
