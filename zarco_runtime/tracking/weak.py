@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from statistics import median
 
 #: recent SNRs kept per kind of arrival
 HISTORY = 21
@@ -67,15 +68,9 @@ class WeakArrivals:
             hist = self._hist[key] = deque(maxlen=HISTORY)
         weak = False
         if len(hist) >= MIN_HISTORY:
-            ordered = sorted(hist)
-            med = _median(ordered)
-            mad = _median(sorted(abs(v - med) for v in ordered))
+            med = median(hist)
+            mad = median(abs(v - med) for v in hist)
             weak = med - snr_db > max(MIN_DEFICIT_DB, SIGMAS * MAD_TO_SIGMA * mad)
         hist.append(snr_db)
         return weak
 
-
-def _median(ordered: list[float]) -> float:
-    n = len(ordered)
-    mid = n // 2
-    return ordered[mid] if n % 2 else 0.5 * (ordered[mid - 1] + ordered[mid])
