@@ -37,6 +37,8 @@ from statistics import median
 NOISE_WINDOW = 31
 #: the scale's bounds (variance ratio)
 NOISE_SCALE_MAX = 25.0
+
+
 def mahalanobis2(dx: float, dy: float, a: float, b: float, d: float) -> float | None:
     """The Mahalanobis distance² of an offset (dx, dy) (m) under the 2×2
     covariance (a, b; b, d) (m²); None when that is not positive definite."""

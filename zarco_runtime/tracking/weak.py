@@ -44,7 +44,7 @@ MIN_HISTORY = 8
 SIGMAS = 3.0
 #: … and at least this far below it (dB)
 MIN_DEFICIT_DB = 5.0
-#: the median absolute deviation of a Gaussian is this fraction of its σ (inverse)
+#: a Gaussian's σ is this many times its median absolute deviation
 MAD_TO_SIGMA = 1.4826
 
 
