@@ -178,6 +178,13 @@ def summary(results: list[dict[str, Any]]) -> dict[str, Any]:
             "sources": {k: round(v / n, 3) for k, v in sorted(src.items())}}
 
 
+def _table(title: str, rows: dict[str, dict[str, Any]], keys: tuple[str, ...]) -> None:
+    """``rows`` (name → figures) under ``title`` on stderr, the figures ``keys``."""
+    print(title, file=sys.stderr)
+    for name, row in rows.items():
+        print(f"  {name:<6} " + "  ".join(f"{k} {row[k]}" for k in keys), file=sys.stderr)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seed", type=int, default=1, help="campaign seed")
@@ -211,18 +218,14 @@ def main() -> int:
                   f"{r['family']:<16} {r['plan']:<9} {far}", file=sys.stderr, flush=True)
     results.sort(key=lambda r: int(r["k"]))
     tab = summary(results)
-    print("\nmanoeuvres (window -5..+40 s): share of the time beyond 3 m and mean distance, "
-          "boat-AUV / target-AUV / boat-target", file=sys.stderr)
-    for kind, row in tab["manoeuvres"].items():
-        print(f"  {kind:<6} n {row['n']:3d}  beyond 3 m {row['boat_far']} / "
-              f"{row['target_far']} / {row['boat_target_far']}  mean {row['boat_auv_m']} / "
-              f"{row['target_auv_m']} / {row['boat_target_m']} m", file=sys.stderr)
-    print("straight legs by closing speed: target ahead of the AUV, boat behind the target "
-          "(m), heading rate RMS (deg/s), thrust (%)", file=sys.stderr)
-    for name, row in tab["straight"].items():
-        print(f"  {name:<5} missions {row['missions']:3d}  {row['target_ahead_m']}  "
-              f"{row['boat_behind_target_m']}  {row['heading_rate_rms_dps']}  "
-              f"{row['thrust_pct']}", file=sys.stderr)
+    _table("\nmanoeuvres (window -5..+40 s): share of the time beyond 3 m (far) and mean "
+           "distance (m), boat-AUV / target-AUV / boat-target", tab["manoeuvres"],
+           ("n", "boat_far", "target_far", "boat_target_far", "boat_auv_m", "target_auv_m",
+            "boat_target_m"))
+    _table("straight legs by closing speed: target ahead of the AUV and boat behind the "
+           "target (m), heading rate RMS (deg/s), thrust (% of full)", tab["straight"],
+           ("missions", "target_ahead_m", "boat_behind_target_m", "heading_rate_rms_dps",
+            "thrust_pct"))
     print(f"estimate followed (share of the followed time): {tab['sources']}", file=sys.stderr)
     print(json.dumps({"bench": "follow_lag", "seed": args.seed, "first": args.first,
                       "n": args.n, "plan": args.plan, "missions": len(results),
